@@ -1,0 +1,1 @@
+"""File input and output: DNG tags and pixels, DNG writing, CG image decoding."""
