@@ -1,0 +1,1 @@
+"""g2r_jax: computer-graphics images to RAW DNGs of one target camera."""
