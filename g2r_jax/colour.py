@@ -9,6 +9,7 @@ in whatever float dtype they are given.
 from __future__ import annotations
 
 import colour
+import jax
 import jax.numpy as jnp
 import numpy as np
 from colour.temperature.robertson1968 import DATA_ISOTEMPERATURE_LINES_ROBERTSON1968
@@ -66,7 +67,8 @@ def decode_to_linear(encoded, transfer: str):
 def srgb_decode_lut(transfer: str = "srgb", dtype=np.float32) -> np.ndarray:
     """256-entry look-up table decoding 8-bit codes with `transfer` (exact at every code)."""
     codes = np.arange(256, dtype=np.float64) / 255.0
-    return np.asarray(decode_to_linear(codes, transfer), dtype=dtype)
+    with jax.ensure_compile_time_eval():
+        return np.asarray(decode_to_linear(codes, transfer), dtype=dtype)
 
 
 def xy_to_XYZ(xy):

@@ -1,0 +1,190 @@
+"""Fitting a SensorProfile from the tags of real DNGs (or from a list of measured illuminants).
+
+Tags alone are enough: colour matrices and calibration illuminants, CFA layout and levels,
+as-shot neutrals (the illuminant population), NoiseProfile with ISO (the noise model) and the
+lens-shading opcode lists. Where the matrices differ from file to file (phones often write a
+per-shot matrix), the CCT-interpolated pair that best explains them is fitted with optimistix.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from . import dng as _dng
+from . import illuminants as _illuminants
+from . import sensor as _sensor
+from .io.dng_info import DngInfo, DngError
+from .profile import ProfileInfo, SensorProfile, default_noise, parse_cfa
+
+
+def colour_model_from_info(info: DngInfo, dtype=np.float32) -> _dng.DngColourModel:
+    """The DNG colour model of one file's tags (raises DngError naming the file)."""
+    if not info.color_matrices:
+        raise DngError(info.path, "no ColorMatrix tags: the camera's colour cannot be modelled")
+    try:
+        return _dng.DngColourModel.from_tags(info.calibration_illuminants, info.color_matrices,
+                                             info.camera_calibrations, info.forward_matrices,
+                                             info.analog_balance, dtype=dtype)
+    except ValueError as error:
+        raise DngError(info.path, str(error)) from None
+
+
+def as_shot_neutral(info: DngInfo) -> np.ndarray | None:
+    """The file's as-shot neutral (G = 1): AsShotNeutral, or AsShotWhiteXY through the model."""
+    if info.as_shot_neutral is not None:
+        neutral = np.asarray(info.as_shot_neutral, np.float64)
+        return neutral / neutral[1]
+    if info.as_shot_white_xy is not None:
+        model = colour_model_from_info(info, np.float64)
+        return np.asarray(_dng.xy_to_camera_neutral(jnp.asarray(info.as_shot_white_xy, jnp.float64), model))
+    return None
+
+
+def _same_matrices(infos) -> bool:
+    first = np.asarray(infos[0].color_matrices)
+    return all(np.asarray(i.color_matrices).shape == first.shape and
+               np.allclose(np.asarray(i.color_matrices), first, atol=1e-6) for i in infos)
+
+
+def fit_color_matrix_pair(infos, dtype=np.float32) -> _dng.DngColourModel:
+    """One ColorMatrix pair explaining files whose matrices differ.
+
+    For each file i, its effective XYZtoCamera at its own as-shot white (from its own tags) is
+    the target; the shared pair (CM1, CM2), interpolated in mired at each file's CCT with the
+    DNG weight, is fitted by Levenberg-Marquardt (optimistix) over all files.
+    """
+    with jax.experimental.enable_x64():
+        targets, weights = [], []
+        for info in infos:
+            model = colour_model_from_info(info, np.float64)
+            neutral = as_shot_neutral(info)
+            neutral = np.ones(3) if neutral is None else neutral
+            xy, _ = _dng.camera_neutral_to_xy(jnp.asarray(neutral), model)
+            weights.append(float(_dng.interpolation_weight(_dng._colour.xy_to_CCT(xy), model)))
+            targets.append(np.asarray(_dng.matrix_XYZ_to_camera(xy, model)))
+        targets, weights = jnp.asarray(np.stack(targets)), jnp.asarray(weights)
+        reference = colour_model_from_info(infos[0], np.float64)
+
+        def residuals(pair, _):
+            predicted = weights[:, None, None] * pair[0] + (1 - weights[:, None, None]) * pair[1]
+            return (predicted - targets).reshape(-1)
+
+        solver = optx.LevenbergMarquardt(rtol=1e-10, atol=1e-12)
+        solution = optx.least_squares(residuals, solver, reference.color_matrix, max_steps=200)
+        pair = np.asarray(solution.value)
+    return _dng.DngColourModel.from_tags(infos[0].calibration_illuminants[:2], list(pair[:len(infos[0].color_matrices[:2])]),
+                                         infos[0].camera_calibrations, infos[0].forward_matrices,
+                                         infos[0].analog_balance, dtype=dtype)
+
+
+def noise_from_infos(infos, cfa_pattern, dtype=np.float32) -> _sensor.NoiseModel:
+    """NoiseModel from the files' NoiseProfile tags, grouped by ISO (median per ISO).
+
+    NoiseProfile holds (S, O) per colour plane (or one pair for all), in normalised units
+    (DNG spec 1.6, NoiseProfile): variance = S x + O; mapped to tile positions by the CFA.
+    """
+    rows = {}
+    for info in infos:
+        if info.noise_profile is None:
+            continue
+        pairs = np.asarray(info.noise_profile, np.float64).reshape(-1, 2)
+        per_colour = np.repeat(pairs, 3, axis=0) if len(pairs) == 1 else pairs[:3]
+        per_position = per_colour[np.asarray(cfa_pattern)]
+        rows.setdefault(float(info.iso or 100.0), []).append(per_position)
+    if not rows:
+        return default_noise(dtype)
+    isos = np.array(sorted(rows))
+    table = np.stack([np.median(np.stack(rows[i]), axis=0) for i in isos])
+    return _sensor.NoiseModel(iso=jnp.asarray(isos, dtype), shot=jnp.asarray(table[..., 0], dtype),
+                              read=jnp.asarray(table[..., 1], dtype),
+                              iso_range=jnp.asarray([isos.min(), isos.max()], dtype))
+
+
+def illuminant_model_for(chromaticities, colour_model, kind: str = "auto", seed: int = 0,
+                         dtype=np.float32) -> _illuminants.IlluminantModel:
+    """Choose and fit the illuminant model.
+
+    `kind`: 'gaussian' (published), 'mixture' (BIC-selected), 'locus' (single DNG), or 'auto':
+    the Gaussian with its hull when at least 3 distinct, non-collinear illuminants are given,
+    otherwise the single-DNG locus model (supplement S3).
+    """
+    points = np.unique(np.round(np.asarray(chromaticities, np.float64).reshape(-1, 2), 9), axis=0)
+    if kind == "locus":
+        return _illuminants.fit_locus(colour_model, dtype=dtype)
+    enough = len(points) >= 3
+    if enough:
+        try:
+            _illuminants.convex_hull_halfplanes(points)
+        except ValueError:
+            enough = False
+    if kind == "auto":
+        kind = "gaussian" if enough else "locus"
+        if kind == "locus":
+            return _illuminants.fit_locus(colour_model, dtype=dtype)
+    if not enough:
+        raise ValueError(f"the {kind} illuminant model needs at least 3 distinct, non-collinear "
+                         f"illuminants; got {len(points)} (use the locus model)")
+    if kind == "gaussian":
+        return _illuminants.fit_gaussian(chromaticities, dtype=dtype)
+    if kind == "mixture":
+        return _illuminants.fit_mixture(chromaticities, seed=seed, dtype=dtype)
+    raise ValueError(f"unknown illuminant model {kind!r}")
+
+
+def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model: str = "auto",
+                noise: _sensor.NoiseModel | None = None, chromaticities=None, provenance: str = "",
+                seed: int = 0, dtype=np.float32) -> SensorProfile:
+    """Fit a SensorProfile from DNG tags.
+
+    **Arguments:** `infos`: tags of the camera's DNGs (`g2r_jax.io.dng_read.read_dng_info`);
+    `illuminant_model`: see `illuminant_model_for`; `noise`: a NoiseModel overriding the files'
+    NoiseProfile tags (e.g. from a calibration table); `chromaticities`: (N, 2) illuminants in
+    (r/g, b/g) to use instead of the files' as-shot neutrals; `provenance`: where the numbers
+    came from (stored in the profile).
+
+    **Returns:** a `SensorProfile`. Raises DngError for files without usable colour tags.
+    """
+    if not infos:
+        raise ValueError("no DNG files to fit a profile from")
+    reference = infos[0]
+    for info in infos:
+        if not info.color_matrices:
+            raise DngError(info.path, "no ColorMatrix tags: the camera's colour cannot be modelled")
+        if not info.is_cfa:
+            raise DngError(info.path, "LinearRaw (demosaiced) DNG: no CFA layout to simulate")
+        if tuple(info.calibration_illuminants) != tuple(reference.calibration_illuminants):
+            raise DngError(info.path, f"calibration illuminants {info.calibration_illuminants} differ from "
+                                      f"{reference.path}'s {reference.calibration_illuminants}")
+    try:
+        cfa = parse_cfa(reference.cfa_pattern)
+    except ValueError as error:
+        raise DngError(reference.path, str(error)) from None
+    colour_model = (colour_model_from_info(reference, dtype) if _same_matrices(infos)
+                    else fit_color_matrix_pair(infos, dtype))
+    if chromaticities is None:
+        neutrals = [n for n in (as_shot_neutral(i) for i in infos) if n is not None]
+        chromaticities = (_illuminants.neutral_to_chromaticity(np.stack(neutrals)) if neutrals
+                          else np.zeros((0, 2)))
+    illuminants = illuminant_model_for(chromaticities, colour_model, illuminant_model, seed, dtype)
+    noise = noise if noise is not None else noise_from_infos(infos, cfa, dtype)
+    opcodes = tuple(sorted((k, bytes(v).hex()) for k, v in (reference.opcode_lists or {}).items()))
+    info = ProfileInfo(name=name, unique_camera_model=reference.unique_camera_model or reference.model or name,
+                       make=reference.make, model=reference.model,
+                       calibration_illuminants=tuple(int(c) for c in reference.calibration_illuminants[:2]),
+                       provenance=provenance or f"fitted by g2r_jax from {len(infos)} DNG file(s)",
+                       opcode_lists=opcodes)
+    black = np.asarray(reference.black_level, np.float64).reshape(-1)
+    black = np.resize(black, 4)
+    baseline = float(np.median([i.baseline_exposure for i in infos]))
+    if len({float(i.white_level) for i in infos}) > 1:
+        warnings.warn(f"white levels differ between files; using {reference.white_level} from {reference.path}")
+    return SensorProfile(
+        cfa_pattern=jnp.asarray(cfa, jnp.int32), black_level=jnp.asarray(black, dtype),
+        white_level=jnp.asarray(float(reference.white_level), dtype),
+        baseline_exposure=jnp.asarray(baseline, dtype), colour=colour_model, illuminants=illuminants,
+        exposure=_sensor.fixed_exposure(dtype), noise=noise, effects=_sensor.no_effects(dtype), info=info)

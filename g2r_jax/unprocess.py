@@ -1,0 +1,160 @@
+"""The inverse ISP: a display-referred CG image -> a RAW mosaic of the profiled camera.
+
+Each stage is one small pure function; `unprocess` reads top to bottom like the method
+(Graphics2RAW, Seo et al. ICCV 2023, Sec. 3; stage names after Brooks et al., "Unprocessing
+Images for Learned Raw Denoising", CVPR 2019). jit it, vmap it over images and keys; the profile
+is a pytree and may be a jit argument.
+
+Colour is the exact inverse of a DNG renderer (DNG spec 1.6, chapter 6): a renderer maps camera
+RGB to XYZ_D50 with CameraToXYZ_D50(xy) for the white xy of AsShotNeutral, then Bradford to D65 and
+sRGB. We apply the inverse of that product for the sampled neutral, so rendering our DNG returns
+the input colours (up to one global exposure scale).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import colour as _colour
+from . import dng as _dng
+from . import illuminants as _illuminants
+from . import sensor as _sensor
+
+HIGHLIGHT_INFLECTION = 0.9  # Brooks et al. 2019, safe_invert_gains
+_STANDARD_LIGHT_A_PUBLISHED = 2500.0  # the published code's value (the DNG SDK uses 2850 K)
+
+
+def decode(image, transfer: str):
+    """Display values -> linear sRGB; 8-bit input goes through an exact 256-entry table."""
+    if image.dtype == jnp.uint8:
+        return jnp.asarray(_colour.srgb_decode_lut(transfer))[image]
+    return _colour.decode_to_linear(image.astype(jnp.float32), transfer)
+
+
+def matrix_srgb_to_white_balanced_camera(xy, neutral, colour_model):
+    """Linear sRGB -> white-balanced camera RGB at white xy: sRGB white maps to (1, 1, 1).
+
+    inverse(Bradford(D50 -> D65) . CameraToXYZ_D50(xy)) . sRGB_to_XYZ gives camera RGB, whose
+    white is proportional to the camera neutral; dividing each row by its white response is
+    exactly removing that neutral (white balance).
+    """
+    srgb_to_xyz = jnp.asarray(_colour.MATRIX_SRGB_TO_XYZ, neutral.dtype)
+    srgb_to_camera = _dng.matrix_XYZ_D65_to_camera(xy, colour_model) @ srgb_to_xyz
+    return srgb_to_camera / jnp.sum(srgb_to_camera, axis=1, keepdims=True)
+
+
+def matrix_srgb_to_white_balanced_camera_published(cct, colour_model):
+    """The published code's CST: row-normalised ColorMatrices, 2500 K for Standard Light A,
+    interpolation in mired without clamping, applied to D65-relative XYZ (no adaptation)."""
+    low_cct = jnp.where(colour_model.calibration_cct[0] == 2850.0, _STANDARD_LIGHT_A_PUBLISHED,
+                        colour_model.calibration_cct[0])
+    high_cct = colour_model.calibration_cct[1]
+    span = jnp.where(low_cct == high_cct, 1.0, 1.0 / low_cct - 1.0 / high_cct)
+    weight = jnp.where(low_cct == high_cct, 1.0, (1.0 / cct - 1.0 / high_cct) / span)
+    normalised = colour_model.color_matrix / jnp.sum(colour_model.color_matrix, axis=2, keepdims=True)
+    xyz_to_camera = weight * normalised[0] + (1 - weight) * normalised[1]
+    return xyz_to_camera @ jnp.asarray(_colour.MATRIX_SRGB_TO_XYZ, cct.dtype)
+
+
+def cfa_planes(linear):
+    """(H, W, 3) -> (4, H/2, W/2, 3): the pixels of each 2x2 tile position."""
+    return jnp.stack([linear[0::2, 0::2], linear[0::2, 1::2], linear[1::2, 0::2], linear[1::2, 1::2]])
+
+
+def mosaic_camera_rgb(planes_rgb, srgb_to_wb_camera, gains, cfa_pattern, highlight_safe: bool):
+    """Mosaicked un-white-balanced camera RGB, computing only the channel each pixel keeps.
+
+    Un-white-balance multiplies by the neutral; with `highlight_safe` the gain is eased to 1
+    for near-white pixels (Brooks et al. 2019, safe_invert_gains) so highlights stay neutral.
+    """
+    rows = srgb_to_wb_camera[cfa_pattern]                        # (4, 3) one row per tile position
+    kept = jnp.einsum("phwc,pc->phw", planes_rgb, rows)
+    gain = gains[cfa_pattern][:, None, None]
+    if not highlight_safe:
+        return kept * gain
+    gray = jnp.einsum("phwc,c->phw", planes_rgb, jnp.mean(srgb_to_wb_camera, axis=0))
+    mask = (jnp.maximum(gray - HIGHLIGHT_INFLECTION, 0.0) / (1.0 - HIGHLIGHT_INFLECTION)) ** 2
+    return kept * jnp.maximum(mask + (1.0 - mask) * gain, gain)
+
+
+def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=None,
+              exposure_gain=None, noise: bool = True, effects: bool = True,
+              highlight_safe: bool = True, recipe: str = "dng", quantize: bool = True):
+    """Turn one CG image into a RAW mosaic of the profiled camera.
+
+    **Arguments:**
+    - `key`: a `jax.random` key; everything random (illuminant, exposure, ISO, noise) derives from it.
+    - `image`: (H, W, 3), H and W even; uint8 codes or float values in [0, 1] (linear for EXR).
+    - `profile`: a `SensorProfile`.
+    - `transfer`: 'srgb' (exact IEC 61966-2-1 curve), 'gamma2.2' (the published choice) or 'linear'.
+    - `neutral`: (3,) camera neutral to use instead of sampling one (G = 1).
+    - `iso`, `exposure_gain`: fix these instead of sampling them.
+    - `noise`, `effects`: add the profile's noise / non-ideal sensor effects.
+    - `highlight_safe`: ease un-white-balance gains to 1 for near-white pixels.
+    - `recipe`: 'dng' (exact DNG colour model) or 'published' (the Graphics2RAW code's
+      approximation; see the README).
+    - `quantize`: return uint16 DN (True) or unrounded float32 DN (False).
+
+    **Returns:** `(mosaic, metadata)`: mosaic (H, W) in DN between the black and white levels;
+    metadata a dict of arrays: neutral (3,), xy (2,), cct, iso, exposure_gain, noise_shot (4,),
+    noise_read (4,) (normalised units per tile position), converged (white-point solve).
+    """
+    height, width = image.shape[0], image.shape[1]
+    if height % 2 or width % 2 or image.ndim != 3 or image.shape[2] != 3:
+        raise ValueError(f"image must be (H, W, 3) with even H and W, got {image.shape}")
+    k_illuminant, k_exposure, k_iso, k_noise, k_readout = jax.random.split(key, 5)
+    dtype = jnp.float32
+
+    # 1. Decode display values to linear sRGB.
+    linear = decode(image, "gamma2.2" if recipe == "published" else transfer)
+
+    # 2. Sample an illuminant from the camera's distribution: a camera neutral (r/g, 1, b/g).
+    if neutral is None:
+        neutral = _illuminants.chromaticity_to_neutral(
+            _illuminants.sample_chromaticity(k_illuminant, profile.illuminants))
+    neutral = jnp.asarray(neutral, dtype)
+    neutral = neutral / neutral[1]
+
+    # 3. Its white point, by the DNG neutral -> xy fixed point, and its CCT.
+    xy, converged = _dng.camera_neutral_to_xy(neutral, profile.colour, throw=False)
+    cct = _colour.xy_to_CCT(xy)
+
+    # 4. Colour space transform: linear sRGB -> white-balanced camera RGB for that white.
+    if recipe == "published":
+        srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera_published(cct, profile.colour)
+    else:
+        srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera(xy, neutral, profile.colour)
+
+    # 5. Un-white-balance and mosaic in one step, scaled so that white reaches 1 in the
+    #    strongest channel, then a global exposure gain.
+    gains = neutral / jnp.max(neutral)
+    planes = mosaic_camera_rgb(cfa_planes(linear), srgb_to_wb_camera, gains, profile.cfa_pattern, highlight_safe)
+    if exposure_gain is None:
+        exposure_gain = _sensor.sample_exposure_gain(k_exposure, profile.exposure)
+    exposure_gain = jnp.asarray(exposure_gain, dtype)
+    planes = planes * exposure_gain
+
+    # 6. Optics and sensor: shading and channel gains, noise at the drawn ISO, readout effects.
+    if effects:
+        planes = _sensor.apply_optical_effects(planes, profile.effects)
+    iso = _sensor.sample_iso(k_iso, profile.noise) if iso is None else jnp.asarray(iso, dtype)
+    shot, read = _sensor.noise_parameters(iso, profile.noise)
+    if noise:
+        planes = _sensor.add_noise(k_noise, planes, shot, read)
+    effect_parameters = profile.effects if effects else _sensor.no_effects()
+    if effects:
+        planes = _sensor.apply_readout_effects(k_readout, planes, profile.effects)
+
+    # 7. Black and white levels, quantisation.
+    mosaic = _sensor.to_digital_numbers(planes, profile.black_level, profile.white_level,
+                                        effect_parameters, quantize=quantize)
+    metadata = {"neutral": neutral, "xy": xy, "cct": cct, "iso": iso, "exposure_gain": exposure_gain,
+                "noise_shot": shot, "noise_read": read, "converged": converged}
+    return mosaic, metadata
+
+
+def image_key(seed: int, index: int):
+    """The PRNG key of the `index`-th image of a run with `seed`: order-independent batches."""
+    return jax.random.fold_in(jax.random.PRNGKey(seed), index)
