@@ -1,0 +1,123 @@
+"""g2r-convert: CG images (PNG/JPEG/TIFF sRGB, linear EXR) -> DNGs of the profiled camera."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .common import add_debug_flag, run_command
+
+DEFAULT_EXAMPLE_PROFILE = "Canon600D"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="g2r-convert", description=__doc__)
+    parser.add_argument("inputs", nargs="*", type=Path, help="image files or folders")
+    parser.add_argument("--profile", help="profile JSON path or shipped profile name")
+    parser.add_argument("-o", "--output", required=True, type=Path, help="output folder")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (same seed, same bytes)")
+    parser.add_argument("--iso", type=float, help="fixed ISO instead of one drawn per image")
+    parser.add_argument("--no-noise", action="store_true", help="do not add sensor noise")
+    parser.add_argument("--no-effects", action="store_true", help="do not add the profile's sensor effects")
+    parser.add_argument("--illuminants", type=Path,
+                        help="CSV with columns r_over_g,g,b_over_g; row i for the i-th input in sorted order")
+    parser.add_argument("--transfer", choices=["auto", "srgb", "gamma2.2", "linear"], default="auto",
+                        help="decoding of input values (auto: sRGB for PNG/JPEG/TIFF, linear for EXR)")
+    parser.add_argument("--recipe", choices=["dng", "published"], default="dng",
+                        help="colour model: exact DNG inverse (default) or the published approximation")
+    parser.add_argument("--batch-size", type=int, default=4)
+    parser.add_argument("--workers", type=int, default=2, help="decode/encode threads")
+    parser.add_argument("--crop-odd", action="store_true", help="drop the last row/column of odd-sized images")
+    parser.add_argument("--engine", choices=["local", "ray"], default="local")
+    parser.add_argument("--example", action="store_true", help="convert the built-in example scene")
+    parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument("--list-profiles", action="store_true", help="list shipped profiles and exit")
+    add_debug_flag(parser)
+    return parser
+
+
+def read_illuminant_csv(path: Path):
+    """Rows (r/g, g, b/g) -> (N, 3) neutrals normalised to G = 1; errors name the file and row."""
+    import csv
+
+    import numpy as np
+
+    from ..io.dng_info import DngError
+
+    try:
+        with open(path, newline="") as handle:
+            rows = list(csv.DictReader(handle))
+    except (OSError, UnicodeDecodeError) as error:
+        raise DngError(path, f"cannot read illuminant CSV ({error})") from None
+    needed = {"r_over_g", "g", "b_over_g"}
+    if not rows or not needed <= set(rows[0]):
+        raise DngError(path, "expected a header with columns r_over_g,g,b_over_g and at least one row")
+    neutrals = []
+    for number, row in enumerate(rows, start=2):
+        try:
+            values = np.array([float(row["r_over_g"]), float(row["g"]), float(row["b_over_g"])])
+        except (TypeError, ValueError):
+            raise DngError(path, f"line {number}: not three numbers") from None
+        if not np.all(np.isfinite(values)) or np.any(values <= 0):
+            raise DngError(path, f"line {number}: values must be positive and finite")
+        neutrals.append(values / values[1])
+    return np.stack(neutrals)
+
+
+def body(args) -> int:
+    from .. import profile as profile_module
+    from ..convert import IMAGE_EXTENSIONS, ConvertOptions, convert_files
+    from ..examples import EXAMPLE_SCENE
+    from ..io.images import list_inputs
+
+    if args.list_profiles:
+        print("\n".join(profile_module.shipped_profiles()))
+        return 0
+    if args.example:
+        inputs = [EXAMPLE_SCENE] + list(args.inputs)
+        profile_name = args.profile or DEFAULT_EXAMPLE_PROFILE
+    else:
+        if not args.inputs:
+            raise ValueError("no inputs given (files or folders), or use --example")
+        if not args.profile:
+            raise ValueError("--profile is required (a JSON path or a shipped name; see --list-profiles)")
+        profile_name = args.profile
+    profile = profile_module.load_profile(profile_name)
+    errors = []
+    files = []
+    for item in inputs if args.example else args.inputs:
+        try:
+            files += list_inputs([item], IMAGE_EXTENSIONS)
+        except Exception as error:  # noqa: BLE001 - report and go on with the other inputs
+            errors.append(str(error))
+    files = sorted(set(files), key=lambda p: (p.name, str(p)))
+    neutrals = None
+    if args.illuminants:
+        neutrals = read_illuminant_csv(args.illuminants)
+        if len(neutrals) < len(files):
+            raise ValueError(f"{args.illuminants}: {len(neutrals)} illuminants for {len(files)} inputs")
+    options = ConvertOptions(seed=args.seed, iso=args.iso, noise=not args.no_noise, effects=not args.no_effects,
+                             transfer=args.transfer, recipe=args.recipe, batch_size=max(1, args.batch_size),
+                             workers=max(1, args.workers), crop_odd=args.crop_odd,
+                             progress=not args.no_progress and sys.stderr.isatty())
+    for line in errors:
+        print(f"g2r-convert: error: {line}", file=sys.stderr)
+    report = lambda line: print(f"g2r-convert: error: {line}", file=sys.stderr)
+    if args.engine == "ray":
+        from ..distributed import convert_files_ray
+        result = convert_files_ray(files, profile_name, args.output, neutrals=neutrals, options=options, on_error=report)
+    else:
+        result = convert_files(files, profile, args.output, neutrals=neutrals, options=options, on_error=report)
+    failed = len(errors) + len(result.errors)
+    print(f"g2r-convert: {len(result.records)} DNG(s) written to {args.output} with profile "
+          f"{profile.info.name!r}; {failed} failed; manifest: {args.output / 'manifest.jsonl'}")
+    return 1 if failed else 0
+
+
+def main(argv=None) -> int:
+    return run_command("g2r-convert", body, argv, build_parser())
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,136 @@
+"""g2r-fit-profile: fit a sensor profile from a folder of the camera's DNGs (or an illuminant list)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .common import add_debug_flag, run_command
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="g2r-fit-profile", description=__doc__)
+    parser.add_argument("dng_dirs", nargs="*", type=Path, help="folders (or files) of the camera's DNGs")
+    parser.add_argument("-o", "--output", required=True, type=Path, help="profile JSON to write")
+    parser.add_argument("--illuminants", type=Path,
+                        help="CSV of measured illuminants (r_over_g,g,b_over_g) instead of as-shot neutrals")
+    parser.add_argument("--calibration", type=Path,
+                        help="DNG (or profile JSON) giving the colour matrices, CFA and levels (with --illuminants)")
+    parser.add_argument("--illuminant-model", choices=["auto", "gaussian", "mixture", "locus"], default="auto",
+                        help="auto: Gaussian + convex hull with >= 3 illuminants, else the single-DNG locus")
+    parser.add_argument("--noise-table", type=Path,
+                        help="noise calibration CSV (iso,cfa_channel_index,beta1_shot,beta2_read; DN incl. black)")
+    parser.add_argument("--name", help="profile name (default: the output file's stem)")
+    parser.add_argument("--seed", type=int, default=0)
+    add_debug_flag(parser)
+    return parser
+
+
+def read_noise_table(path: Path, black_level, white_level):
+    """NoiseModel from a calibration CSV like ../shared/data/noise/ (errors name the file)."""
+    import csv
+
+    import numpy as np
+
+    from ..io.dng_info import DngError
+    from ..profile import noise_from_table
+
+    try:
+        with open(path, newline="") as handle:
+            rows = list(csv.DictReader(handle))
+        table = {}
+        for row in rows:
+            table.setdefault(float(row["iso"]), {})[int(row["cfa_channel_index"])] = (
+                float(row["beta1_shot"]), float(row["beta2_read"]))
+    except (OSError, KeyError, ValueError, TypeError) as error:
+        raise DngError(path, f"not a noise table with columns iso,cfa_channel_index,beta1_shot,beta2_read ({error})") from None
+    isos = sorted(table)
+    if not isos or any(sorted(table[i]) != [0, 1, 2, 3] for i in isos):
+        raise DngError(path, "every ISO needs the four CFA positions 0..3")
+    beta1 = np.array([[table[i][p][0] for p in range(4)] for i in isos])
+    beta2 = np.array([[table[i][p][1] for p in range(4)] for i in isos])
+    return noise_from_table(isos, beta1, beta2, black_level, white_level)
+
+
+def _calibration_infos(path: Path):
+    from ..io.dng_read import read_dng_info
+    from ..profile import load_profile
+    from ..io.dng_info import DngInfo
+    import numpy as np
+
+    if path.suffix.lower() == ".json":
+        profile = load_profile(path, dtype=np.float64)
+        n = len(profile.info.calibration_illuminants)
+        return [DngInfo(path=str(path), cfa_pattern=tuple(int(c) for c in np.asarray(profile.cfa_pattern)),
+                        black_level=np.asarray(profile.black_level), white_level=float(profile.white_level),
+                        unique_camera_model=profile.info.unique_camera_model,
+                        calibration_illuminants=profile.info.calibration_illuminants,
+                        color_matrices=tuple(np.asarray(profile.colour.color_matrix[:n])),
+                        camera_calibrations=tuple(np.asarray(profile.colour.camera_calibration[:n])),
+                        forward_matrices=tuple(np.asarray(profile.colour.forward_matrix[:n]))
+                        if profile.colour.has_forward_matrix else ())]
+    return [read_dng_info(path)]
+
+
+def body(args) -> int:
+    import numpy as np
+
+    from ..fit import fit_profile
+    from ..illuminants import neutral_to_chromaticity
+    from ..io.dng_read import read_dng_info, require_bayer_cfa, require_colour_tags
+    from ..io.images import list_inputs
+    from ..profile import save_profile
+    from .convert import read_illuminant_csv
+
+    failures = []
+    infos = []
+    if args.illuminants:
+        if not args.calibration:
+            raise ValueError("--illuminants needs --calibration DNG (or profile JSON) for the camera's matrices")
+        infos = _calibration_infos(args.calibration)
+        chromaticities = neutral_to_chromaticity(read_illuminant_csv(args.illuminants))
+        source = f"illuminants from {args.illuminants.name}, colour tags from {args.calibration.name}"
+    else:
+        if not args.dng_dirs:
+            raise ValueError("give DNG folders, or --illuminants CSV --calibration DNG")
+        paths = []
+        for item in args.dng_dirs:
+            try:
+                paths += list_inputs([item], (".dng",))
+            except Exception as error:  # noqa: BLE001
+                failures.append(str(error))
+        for path in paths:
+            try:
+                info = require_bayer_cfa(require_colour_tags(read_dng_info(path)))
+                for warning in info.warnings:
+                    print(f"g2r-fit-profile: warning: {path}: {warning}", file=sys.stderr)
+                infos.append(info)
+            except Exception as error:  # noqa: BLE001 - report and go on
+                failures.append(str(error))
+        chromaticities = None
+        source = f"{len(infos)} DNG file(s) from {', '.join(str(d) for d in args.dng_dirs)}"
+    for line in failures:
+        print(f"g2r-fit-profile: error: {line}", file=sys.stderr)
+    if not infos:
+        raise ValueError("no usable DNG files; nothing to fit")
+    noise = None
+    if args.noise_table:
+        noise = read_noise_table(args.noise_table, np.resize(np.asarray(infos[0].black_level, float), 4),
+                                 infos[0].white_level)
+        source += f"; noise from {args.noise_table.name}"
+    profile = fit_profile(infos, name=args.name or args.output.stem, illuminant_model=args.illuminant_model,
+                          noise=noise, chromaticities=chromaticities, provenance=f"g2r-fit-profile: {source}",
+                          seed=args.seed)
+    save_profile(profile, args.output)
+    print(f"g2r-fit-profile: wrote {args.output} ({profile.illuminants.kind} illuminant model, "
+          f"{len(infos)} file(s); {len(failures)} failed)")
+    return 1 if failures else 0
+
+
+def main(argv=None) -> int:
+    return run_command("g2r-fit-profile", body, argv, build_parser())
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,254 @@
+"""Batch conversion of CG image files into DNGs of the profiled camera.
+
+The driver around `unprocess`: decodes files on worker threads ahead of the compute, runs one
+jitted `vmap(unprocess)` per batch of same-sized images (the last batch padded, so shapes and
+compiled code are reused), and writes DNGs atomically on worker threads. Memory stays bounded
+by the number of images in flight whatever the folder size. A bad file is reported and the
+batch goes on. Every image's PRNG key derives from (seed, file name), so the same seed gives
+the same bytes whatever the batch order or batch size.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as futures
+import dataclasses
+import json
+import zlib
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .io.atomic import atomic_write_bytes
+from .io.dng_info import DngError, DngInfo
+from .unprocess import unprocess
+
+IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr")
+
+
+@dataclasses.dataclass
+class ConvertOptions:
+    """Options of a conversion run (all keyword-only in `convert_files`)."""
+
+    seed: int = 0
+    iso: float | None = None
+    noise: bool = True
+    effects: bool = True
+    transfer: str = "auto"        # 'auto': sRGB for PNG/JPEG/TIFF, linear for EXR
+    recipe: str = "dng"
+    batch_size: int = 4
+    workers: int = 2
+    crop_odd: bool = False
+    progress: bool = True
+
+
+@dataclasses.dataclass
+class ConvertResult:
+    """What a run did: one manifest record per converted file, one error line per failure."""
+
+    records: list
+    errors: list
+
+    @property
+    def ok(self) -> bool:
+        return not self.errors
+
+
+def file_key(seed: int, name: str):
+    """PRNG key of one input: folded from the seed and a CRC-32 of the file name."""
+    return jax.random.fold_in(jax.random.PRNGKey(seed), zlib.crc32(name.encode()) & 0x7FFFFFFF)
+
+
+def noise_profile_tag(shot, read, cfa_pattern) -> np.ndarray:
+    """DNG NoiseProfile (S, O) per colour plane R, G, B from per-tile-position parameters."""
+    shot, read, cfa = np.asarray(shot, np.float64), np.asarray(read, np.float64), np.asarray(cfa_pattern)
+    return np.stack([[shot[cfa == c].mean(), read[cfa == c].mean()] for c in range(3)])
+
+
+def dng_info_for(profile, metadata: dict, height: int, width: int, *, noise: bool) -> DngInfo:
+    """The DNG tags of one simulated image: the camera's tags plus what was sampled."""
+    colour, info = profile.colour, profile.info
+    n = 1 if len(info.calibration_illuminants) == 1 else 2
+    matrices = lambda m: tuple(np.asarray(m[:n], np.float64))
+    shot, read = metadata["noise_shot"], metadata["noise_read"]
+    has_noise = noise and float(np.max(np.abs(shot))) + float(np.max(np.abs(read))) > 0
+    return DngInfo(
+        width=width, height=height, cfa_pattern=tuple(int(c) for c in np.asarray(profile.cfa_pattern)),
+        black_level=np.asarray(profile.black_level, np.float64), white_level=float(profile.white_level),
+        unique_camera_model=info.unique_camera_model, make=info.make or "g2r_jax", model=info.model or info.name,
+        calibration_illuminants=tuple(info.calibration_illuminants), color_matrices=matrices(colour.color_matrix),
+        camera_calibrations=matrices(colour.camera_calibration),
+        forward_matrices=matrices(colour.forward_matrix) if colour.has_forward_matrix else (),
+        analog_balance=np.asarray(colour.analog_balance, np.float64),
+        as_shot_neutral=np.asarray(metadata["neutral"], np.float64),
+        baseline_exposure=float(profile.baseline_exposure),
+        noise_profile=noise_profile_tag(shot, read, profile.cfa_pattern) if has_noise else None,
+        iso=float(np.round(metadata["iso"])))
+
+
+def _transfer_for(path: Path, transfer: str) -> str:
+    if transfer != "auto":
+        return transfer
+    return "linear" if path.suffix.lower() == ".exr" else "srgb"
+
+
+def _load(path: Path, crop_odd: bool):
+    from .io import images
+
+    array = images.read_image_uint8(path)
+    if array is None:
+        array, _ = images.read_image(path)
+    height, width = array.shape[:2]
+    if height % 2 or width % 2:
+        if not crop_odd:
+            raise DngError(path, f"odd image size {width}x{height}: a 2x2 CFA needs even sizes "
+                                 f"(use --crop-odd to drop the last row/column)")
+        array = array[: height - height % 2, : width - width % 2]
+    if array.shape[0] < 2 or array.shape[1] < 2:
+        raise DngError(path, f"image too small ({width}x{height})")
+    return np.ascontiguousarray(array)
+
+
+_COMPILED = {}
+
+
+def _batched_unprocess(options: ConvertOptions, transfer: str, with_neutral: bool):
+    """One jitted vmap(unprocess) per option set (jax caches the compiled code per shape)."""
+    signature = (options.noise, options.effects, options.recipe, transfer, with_neutral, options.iso is not None)
+
+    if signature not in _COMPILED:
+        def one(key, image, profile, neutral, iso):
+            return unprocess(key, image, profile, transfer=transfer, noise=options.noise,
+                             effects=options.effects, recipe=options.recipe,
+                             neutral=neutral if with_neutral else None,
+                             iso=iso if options.iso is not None else None)
+
+        _COMPILED[signature] = jax.jit(jax.vmap(one, in_axes=(0, 0, None, 0, None)))
+    return _COMPILED[signature]
+
+
+def _manifest_record(path, output, metadata, seed):
+    return {"input": str(path), "output": str(output),
+            "neutral": [round(float(v), 8) for v in np.asarray(metadata["neutral"])],
+            "xy": [round(float(v), 8) for v in np.asarray(metadata["xy"])],
+            "cct": round(float(metadata["cct"]), 3), "iso": round(float(metadata["iso"]), 3),
+            "exposure_gain": round(float(metadata["exposure_gain"]), 6), "seed": seed}
+
+
+def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOptions | None = None,
+                  on_error=None) -> ConvertResult:
+    """Convert image files into DNGs `out_dir/<stem>.dng` and write `out_dir/manifest.jsonl`.
+
+    **Arguments:** `inputs`: image paths (already expanded, in the order rows of `neutrals`
+    apply); `profile`: a SensorProfile; `out_dir`; `neutrals`: optional (N, 3) camera neutrals,
+    row i for input i; `options`: `ConvertOptions`; `on_error`: called with each error line.
+
+    **Returns:** `ConvertResult` (records in input order, error lines).
+    """
+    from .io.dng_write import write_dng_bytes
+
+    options = options or ConvertOptions()
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    inputs = [Path(p) for p in inputs]
+    records, errors = {}, []
+    report = (lambda line: (errors.append(line), on_error and on_error(line)))
+
+    stems = {}
+    for path in inputs:
+        stems.setdefault(path.stem, []).append(path)
+    duplicates = {s for s, paths in stems.items() if len(paths) > 1}
+
+    progress = None
+    if options.progress:
+        from tqdm import tqdm
+        progress = tqdm(total=len(inputs), unit="image", desc="g2r-convert")
+
+    def write(index, path, mosaic, metadata):
+        output = out_dir / f"{path.stem}.dng"
+        try:
+            info = dng_info_for(profile, metadata, mosaic.shape[0], mosaic.shape[1], noise=options.noise)
+            atomic_write_bytes(output, write_dng_bytes(np.asarray(mosaic), info, where=output))
+        except DngError:
+            raise
+        except Exception as error:  # noqa: BLE001 - name the input whatever went wrong
+            raise DngError(path, f"writing {output} failed: {type(error).__name__}: {error}") from error
+        return index, _manifest_record(path, output, metadata, options.seed)
+
+    with futures.ThreadPoolExecutor(max(1, options.workers)) as pool:
+        def submit_load(i):
+            return pool.submit(_load, inputs[i], options.crop_odd)
+
+        window = max(2 * options.batch_size, options.workers)
+        loading = {i: submit_load(i) for i in range(min(window, len(inputs)))}
+        writing = []
+        pending = []   # (index, image) waiting for a batch partner of the same shape/transfer
+        next_to_load = len(loading)
+
+        def flush(batch):
+            if not batch:
+                return
+            transfer = _transfer_for(inputs[batch[0][0]], options.transfer)
+            count = len(batch)
+            padded = batch + [batch[-1]] * (options.batch_size - count) if count < options.batch_size else batch
+            keys = jnp.stack([file_key(options.seed, inputs[i].name) for i, _ in padded])
+            images = jnp.asarray(np.stack([image for _, image in padded]))
+            with_neutral = neutrals is not None
+            neutral_rows = (jnp.asarray(np.stack([neutrals[i] for i, _ in padded]), jnp.float32) if with_neutral
+                            else jnp.ones((len(padded), 3), jnp.float32))
+            iso = jnp.asarray(options.iso if options.iso is not None else 0.0, jnp.float32)
+            mosaics, metadata = _batched_unprocess(options, transfer, with_neutral)(keys, images, profile, neutral_rows, iso)
+            mosaics = np.asarray(mosaics)
+            metadata = {k: np.asarray(v) for k, v in metadata.items()}
+            for j, (index, _) in enumerate(batch):
+                writing.append(pool.submit(write, index, inputs[index], mosaics[j], {k: v[j] for k, v in metadata.items()}))
+
+        for index in range(len(inputs)):
+            path = inputs[index]
+            try:
+                if path.stem in duplicates:
+                    raise DngError(path, f"another input has the same name stem {path.stem!r}; outputs would collide")
+                image = loading.pop(index).result()
+            except Exception as error:  # noqa: BLE001 - every per-file failure is reported, the batch goes on
+                loading.pop(index, None)
+                report(str(error) if isinstance(error, DngError) else f"{path}: {type(error).__name__}: {error}")
+                if progress:
+                    progress.update(1)
+                image = None
+            if next_to_load < len(inputs):
+                loading[next_to_load] = submit_load(next_to_load)
+                next_to_load += 1
+            if image is None:
+                continue
+            same = pending and (pending[0][1].shape == image.shape and pending[0][1].dtype == image.dtype and
+                                _transfer_for(inputs[pending[0][0]], options.transfer) == _transfer_for(path, options.transfer))
+            if pending and not same:
+                flush(pending)
+                pending = []
+            pending.append((index, image))
+            if len(pending) == options.batch_size:
+                flush(pending)
+                pending = []
+            for done in [w for w in writing if w.done()]:
+                writing.remove(done)
+                _collect(done, inputs, records, report, progress)
+        flush(pending)
+        for done in writing:
+            _collect(done, inputs, records, report, progress)
+    if progress:
+        progress.close()
+    ordered = [records[i] for i in sorted(records)]
+    manifest = "".join(json.dumps(r) + "\n" for r in ordered)
+    atomic_write_bytes(out_dir / "manifest.jsonl", manifest.encode())
+    return ConvertResult(records=ordered, errors=errors)
+
+
+def _collect(future, inputs, records, report, progress):
+    try:
+        index, record = future.result()
+        records[index] = record
+    except Exception as error:  # noqa: BLE001
+        report(str(error) if isinstance(error, DngError) else f"{type(error).__name__}: {error}")
+    if progress:
+        progress.update(1)
