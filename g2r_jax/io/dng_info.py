@@ -55,6 +55,8 @@ class DngInfo:
     default_crop_size: Optional[tuple] = None
     opcode_lists: dict = dataclasses.field(default_factory=dict)  # {"OpcodeList1": bytes, ...}
     warnings: list = dataclasses.field(default_factory=list)      # non-fatal problems found on read
+    cfa_repeat_dim: tuple = (2, 2)            # CFARepeatPatternDim (rows, cols); () for LinearRaw
+    pixel_data_problem: Optional[str] = None  # set on read when the raw pixel data is missing/short
 
     def cfa_string(self) -> str:
         """The 2x2 pattern as letters, e.g. 'RGGB'."""
