@@ -16,6 +16,7 @@ import numpy as np
 import optimistix as optx
 
 from . import dng as _dng
+from ._x64 import enable_x64
 from . import illuminants as _illuminants
 from . import sensor as _sensor
 from .io.dng_info import DngInfo, DngError
@@ -58,7 +59,7 @@ def fit_color_matrix_pair(infos, dtype=np.float32) -> _dng.DngColourModel:
     the target; the shared pair (CM1, CM2), interpolated in mired at each file's CCT with the
     DNG weight, is fitted by Levenberg-Marquardt (optimistix) over all files.
     """
-    with jax.experimental.enable_x64():
+    with enable_x64():
         targets, weights = [], []
         for info in infos:
             model = colour_model_from_info(info, np.float64)
