@@ -9,6 +9,7 @@ colour_hdri = pytest.importorskip("colour_hdri")
 from colour_hdri.models import dng as reference  # noqa: E402
 
 from g2r_jax import dng  # noqa: E402
+from dng_reference import neutral_to_xy  # noqa: E402
 from g2r_jax._x64 import enable_x64  # noqa: E402
 
 I3 = np.eye(3)
@@ -31,22 +32,6 @@ def random_camera(rng, *, forward: bool, calibration: bool, codes=(17, 21)):
               for _ in codes]
     ab = rng.uniform(0.9, 1.1, 3) if calibration else np.ones(3)
     return cm, cc, fm, ab
-
-
-def reference_neutral_to_xy(neutral, *args, iterations=500):
-    """The DNG neutral -> xy iteration built on colour_hdri's XYZtoCamera, stopping when xy moves
-    less than 1e-13. (colour_hdri's own `camera_neutral_to_xy` tests |sum(dx, dy)|, which can stop
-    on a cancellation or loop forever, so its iteration is restated here around its matrices.)"""
-    import colour
-
-    xy = np.array(colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D50"])
-    for _ in range(iterations):
-        XYZ = np.linalg.solve(reference.matrix_XYZ_to_camera_space(xy, *args), neutral)
-        new = XYZ[:2] / XYZ.sum()
-        if np.max(np.abs(new - xy)) < 1e-13:
-            return new
-        xy = new
-    raise AssertionError(f"reference iteration did not converge for {neutral}")
 
 
 def reference_args(codes, cm, cc, fm, ab):
@@ -88,7 +73,7 @@ def test_matrices_and_white_point_agree_with_colour_hdri(case):
                                        reference.matrix_camera_space_to_XYZ(xy, *ccts, *cm_, *cc_, ab_, *fm_), atol=1e-6)
             neutral = reference.xy_to_camera_neutral(xy, *ccts, *cm_, *cc_, ab_)
             np.testing.assert_allclose(dng.xy_to_camera_neutral(jnp.asarray(xy), model), neutral, atol=1e-6)
-            expected_xy = reference_neutral_to_xy(neutral, *ccts, *cm_, *cc_, ab_)
+            expected_xy = neutral_to_xy(neutral, *ccts, *cm_, *cc_, ab_)
             got_xy, converged = dng.camera_neutral_to_xy(jnp.asarray(neutral), model)
             assert bool(converged)
             np.testing.assert_allclose(got_xy, expected_xy, atol=1e-6)
@@ -113,7 +98,7 @@ def test_vmapped_white_points_match_one_by_one():
     assert bool(np.all(converged))
     ccts, cm_, cc_, fm_, ab_ = reference_args((17, 21), cm, cc, fm, ab)
     for n, got in zip(neutrals[:8], np.asarray(xy[:8])):
-        np.testing.assert_allclose(got, reference_neutral_to_xy(n, *ccts, *cm_, *cc_, ab_), atol=1e-6)
+        np.testing.assert_allclose(got, neutral_to_xy(n, *ccts, *cm_, *cc_, ab_), atol=1e-6)
 
 
 def test_interpolation_weight_is_clamped():
