@@ -1,0 +1,68 @@
+"""Loading measured files and scene images for the audit (the I/O edge of the package)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..io.dng_info import DngError, DngInfo
+
+DNG_SUFFIXES = (".dng",)
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
+
+
+def measured_paths(folder) -> list[Path]:
+    """The DNG files of a folder, sorted by name; DngError when there are none."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise DngError(folder, "not a folder")
+    paths = sorted(p for p in folder.iterdir() if p.suffix.lower() in DNG_SUFFIXES)
+    if not paths:
+        raise DngError(folder, "no .dng files in this folder")
+    return paths
+
+
+def load_measured(items) -> list[tuple[np.ndarray, DngInfo]]:
+    """(mosaic, DngInfo) for each item: a path to a DNG, or an in-memory (mosaic, DngInfo) pair.
+
+    Raises DngError naming the file for anything unreadable, non-Bayer, or an odd-sized mosaic.
+    """
+    from ..io.dng_read import read_dng_info, read_dng_pixels, require_bayer_cfa
+
+    out = []
+    for item in items:
+        if isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[1], DngInfo):
+            mosaic, info = np.asarray(item[0]), item[1]
+        else:
+            info = require_bayer_cfa(read_dng_info(item))
+            mosaic = read_dng_pixels(item, info)
+        if mosaic.ndim != 2 or mosaic.shape[0] < 16 or mosaic.shape[1] < 16:
+            raise DngError(info.path, f"mosaic of shape {mosaic.shape} is too small to audit")
+        if mosaic.shape[0] % 2 or mosaic.shape[1] % 2:
+            mosaic = mosaic[: mosaic.shape[0] // 2 * 2, : mosaic.shape[1] // 2 * 2]
+        out.append((mosaic, info))
+    return out
+
+
+def load_scenes(folder, n: int, height: int, width: int) -> np.ndarray:
+    """(n, H, W, 3) sRGB scenes in [0, 1] from the images of a folder (cycled if fewer than n),
+    each resized to the measured files' size."""
+    from PIL import Image
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise DngError(folder, "scene folder not found")
+    paths = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    if not paths:
+        raise DngError(folder, f"no scene images ({', '.join(IMAGE_SUFFIXES)}) in this folder")
+    scenes = []
+    for i in range(n):
+        path = paths[i % len(paths)]
+        try:
+            with Image.open(path) as image:
+                image = image.convert("RGB").resize((width, height), Image.BILINEAR)
+                scenes.append(np.asarray(image, np.float32) / 255.0)
+        except OSError as error:
+            raise DngError(path, f"cannot read scene image ({error})") from None
+    return np.stack(scenes)

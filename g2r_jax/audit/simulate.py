@@ -1,0 +1,102 @@
+"""Simulated files: the profile's simulation (`unprocess`) run on scenes, as (mosaic, DngInfo).
+
+One jitted, vmapped call per set; the profile is a jit argument, so changing an effect's
+parameters does not recompile. Defect lists are padded to a bucket size with out-of-range
+coordinates (dropped by the scatter in `sensor.to_digital_numbers`) so their count does not
+change shapes either.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import illuminants as _illuminants
+from .. import profile as _profile
+from ..io.dng_info import DngInfo
+from ..unprocess import image_key, unprocess
+
+_BUCKET = 64
+
+
+def pad_defects(profile, height: int):
+    """The profile with its defect list padded to a multiple of 64 entries (row = 4 * height,
+    outside the image, so the padding is dropped)."""
+    effects = profile.effects
+    count = int(effects.defect_rows.shape[0])
+    size = _BUCKET * max(1, -(-count // _BUCKET))
+    pad = size - count
+    if pad == 0:
+        return profile
+    padded = type(effects)(
+        black_pedestal=effects.black_pedestal, clip_level=effects.clip_level,
+        channel_gain=effects.channel_gain, shading=effects.shading,
+        defect_rows=jnp.concatenate([effects.defect_rows, jnp.full(pad, 4 * height, jnp.int32)]),
+        defect_cols=jnp.concatenate([effects.defect_cols, jnp.zeros(pad, jnp.int32)]),
+        defect_values=jnp.concatenate([effects.defect_values, jnp.zeros(pad, effects.defect_values.dtype)]),
+        row_noise_std=effects.row_noise_std, column_noise_std=effects.column_noise_std)
+    return _profile.replace(profile, effects=padded)
+
+
+@jax.jit
+def _simulate_batch(keys, images, neutrals, profile):
+    return jax.vmap(lambda k, im, n: unprocess(k, im, profile, neutral=n))(keys, images, neutrals)
+
+
+def sample_neutrals(keys, illuminants):
+    """The neutral `unprocess` would draw for each key (its first sub-key, same sampler)."""
+    first = jax.vmap(lambda k: jax.random.split(k, 5)[0])(keys)
+    return _illuminants.chromaticity_to_neutral(
+        jax.vmap(lambda k: _illuminants.sample_chromaticity(k, illuminants))(first))
+
+
+def _fixed_illuminants(profile):
+    """Stand-in illuminant model of constant shapes (neutrals are passed in explicitly), so that
+    illuminant models of any size or kind share one compiled simulation."""
+    dtype = profile.illuminants.means.dtype
+    return _illuminants.IlluminantModel(weights=jnp.ones(1, dtype), means=jnp.ones((1, 2), dtype),
+                                        cholesky=jnp.zeros((1, 2, 2), dtype), hull=jnp.zeros((1, 3), dtype),
+                                        kind="gaussian", use_hull=False)
+
+
+def info_for(profile, metadata: dict, height: int, width: int, index: int = 0) -> DngInfo:
+    """The DngInfo a camera with this profile would write for one simulated mosaic."""
+    info = profile.info
+    n = 1 if len(info.calibration_illuminants) == 1 else 2
+    return DngInfo(
+        path=f"<simulated {index}>", width=width, height=height,
+        cfa_pattern=tuple(int(c) for c in np.asarray(profile.cfa_pattern)),
+        black_level=np.asarray(profile.black_level, np.float64),
+        white_level=float(profile.white_level), unique_camera_model=info.unique_camera_model,
+        calibration_illuminants=tuple(info.calibration_illuminants),
+        color_matrices=tuple(np.asarray(profile.colour.color_matrix, np.float64)[:n]),
+        as_shot_neutral=np.asarray(metadata["neutral"], np.float64),
+        baseline_exposure=float(profile.baseline_exposure), iso=float(metadata["iso"]))
+
+
+def simulate(profile, scenes, seed: int, *, batch: int = 8) -> list[tuple[np.ndarray, DngInfo]]:
+    """Run the profile's simulation on every scene.
+
+    **Arguments:** `profile`: a SensorProfile; `scenes`: (N, H, W, 3) sRGB images in [0, 1];
+    `seed`: file i uses the key `image_key(seed, i)` (so a set is reproducible, and two profiles
+    simulated with the same seed see the same scenes and random draws).
+
+    **Returns:** a list of (uint16 mosaic (H, W), DngInfo).
+    """
+    scenes = np.asarray(scenes, np.float32)
+    n, height, width = scenes.shape[:3]
+    padded = _profile.replace(pad_defects(profile, height), illuminants=_fixed_illuminants(profile))
+    out = []
+    for start in range(0, n, batch):
+        stop = min(start + batch, n)
+        idx = list(range(start, stop)) + [start] * (batch - (stop - start))  # constant batch shape
+        keys = jnp.stack([image_key(seed, i) for i in idx])
+        neutrals = sample_neutrals(keys, profile.illuminants)
+        mosaics, metadata = _simulate_batch(keys, jnp.asarray(scenes[idx]), neutrals, padded)
+        mosaics = np.asarray(mosaics)
+        metadata = {k: np.asarray(v) for k, v in metadata.items()}
+        for j, i in enumerate(range(start, stop)):
+            meta = {k: v[j] for k, v in metadata.items()}
+            out.append((mosaics[j], info_for(profile, meta, height, width, i)))
+    return out

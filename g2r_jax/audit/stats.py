@@ -1,0 +1,307 @@
+"""Per-file statistics that describe the sensor rather than the scene.
+
+Each function takes one file's normalised CFA planes (4, H/2, W/2) (x = (DN - BlackLevel) /
+(WhiteLevel - BlackLevel), tile positions in row-major order) and returns a small vector. All
+but `dark_floor` work on planes from which the file's own dark floor was subtracted, so a black
+pedestal shows up in `dark_floor` only. `file_statistics` computes them all.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import sensor as _sensor
+
+# Trimmed second moment: the mean of the smallest 90% of d^2 is 0.62302 sigma^2 for a zero-mean
+# Gaussian d (chi-square(1) truncated at its 0.9 quantile 2.7055); robust to the few differences
+# that straddle an edge, and unlike the median not stuck on the discrete values of integer DN.
+_KEEP = 0.9
+_CHI2_1_TRIMMED_MEAN = 0.6230155
+_MAD_TO_STD = 1.482602   # 1 / Phi^-1(3/4): MAD of a Gaussian -> its standard deviation
+NLF_EDGES = np.array([-0.02, 0.01, 0.03, 0.06, 0.12, 0.25, 0.45, 0.7, 0.92])
+RINGS = 7
+
+
+def to_normalised_planes(mosaic, black_level, white_level) -> np.ndarray:
+    """(H, W) DN mosaic -> (4, H/2, W/2) float64 planes x = (DN - black) / (white - black)."""
+    m = np.asarray(mosaic, np.float64)
+    planes = np.stack([m[0::2, 0::2], m[0::2, 1::2], m[1::2, 0::2], m[1::2, 1::2]])  # sensor.to_planes
+    black = np.asarray(black_level, np.float64).reshape(4, 1, 1)
+    return (planes - black) / (float(white_level) - black)
+
+
+def block_means(planes, size: int) -> np.ndarray:
+    """Means over non-overlapping size x size blocks of each plane (edges trimmed)."""
+    p, h, w = planes.shape
+    h, w = h - h % size, w - w % size
+    return planes[:, :h, :w].reshape(p, h // size, size, w // size, size).mean(axis=(2, 4))
+
+
+def radial_r2(plane_shape) -> np.ndarray:
+    """r^2 of every plane pixel (4, H/2, W/2), r = 1 in the corners (as the shading model)."""
+    return np.asarray(_sensor.radial_distance_squared(plane_shape), np.float64)
+
+
+def dark_floor(planes) -> np.ndarray:
+    """(4,) dark floor: 0.5th percentile of 4x4 block means per plane.
+
+    Black areas of a scene read BlackLevel + pedestal; block means shrink the noise (so the low
+    percentile sits close to the floor, not in the noise tail). Compare with the BlackLevel tag.
+    """
+    return np.percentile(block_means(planes, 4).reshape(4, -1), 0.5, axis=1)
+
+
+def clipping_level(planes, white_dn: float, span: np.ndarray) -> np.ndarray:
+    """(4,) the level where each plane saturates, NaN where the file has no saturated area.
+
+    Clipped pixels pile up at one value: the most populated DN in the top half of the range,
+    kept when it holds at least 0.2% of the pixels (and 20) and five times the average count of
+    the 3-12 DN below it (a spike, not a bright smooth area). Histogram method of e.g. Foi,
+    "Clipped noisy images: heteroskedastic modeling and practical denoising", Signal Processing 2009.
+    """
+    out = np.full(4, np.nan)
+    for p in range(4):
+        dn = np.rint(planes[p] * span[p]).astype(np.int64).ravel()
+        dn = dn[(dn > 0.5 * span[p])]
+        if dn.size < 20:
+            continue
+        counts = np.bincount(dn - dn.min())
+        peak = int(np.argmax(counts))
+        below = counts[max(peak - 12, 0):max(peak - 2, 0)]
+        background = below.mean() if below.size else 0.0
+        if counts[peak] >= max(20, 0.002 * planes[p].size) and counts[peak] >= 5 * background:
+            out[p] = (peak + dn.min()) / span[p]
+    return out
+
+
+def _robust_variance(d):
+    """Variance of zero-mean Gaussian samples from their trimmed second moment (see _KEEP)."""
+    if d.size == 0:
+        return np.nan
+    squares = d * d
+    keep = max(1, int(_KEEP * squares.size))
+    return np.partition(squares, keep - 1)[:keep].mean() / _CHI2_1_TRIMMED_MEAN
+
+
+def banding(planes) -> np.ndarray:
+    """(2,) variance of per-row and per-column offsets (normalised units^2), averaged over planes.
+
+    Differences of neighbouring same-colour rows, median over the left and over the right half
+    of the columns: a row offset is common to both halves, noise and most scene content are not,
+    so the covariance of the two halves estimates var(offset difference) = 2 var(offset); robust
+    version from MADs: cov = (S(a+b)^2 - S(a-b)^2) / 4 (Gnanadesikan & Kettenring, Biometrics
+    1972, robust covariance by the identity cov = (var(a+b) - var(a-b)) / 4).
+    """
+    result = []
+    for axis_planes in (planes, np.swapaxes(planes, 1, 2)):
+        values = []
+        for plane in axis_planes:
+            diff = np.diff(plane, axis=0)
+            half = diff.shape[1] // 2
+            a, b = np.median(diff[:, :half], axis=1), np.median(diff[:, half:], axis=1)
+            s = lambda v: _MAD_TO_STD * np.median(np.abs(v - np.median(v)))
+            values.append((s(a + b) ** 2 - s(a - b) ** 2) / 8.0)
+        result.append(np.mean(values))
+    return np.asarray(result)
+
+
+def flat_mask(planes, block: int = 2, relative: float = 0.06, absolute: float = 0.006) -> np.ndarray:
+    """(4, H/2, W/2) True in flat areas: block x block means that differ from all four neighbour
+    blocks by less than max(relative * mean, absolute). A scale-separated detail test (the
+    smoothness selection of Foi et al. 2008, Sec. IV, with block means instead of wavelets)
+    that does not use any noise model, so it cannot bias the noise estimate towards the profile."""
+    means = block_means(planes, block)
+    padded = np.pad(means, ((0, 0), (1, 1), (1, 1)), mode="edge")
+    tolerance = np.maximum(relative * np.abs(means), absolute)
+    flat = np.ones(means.shape, bool)
+    for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+        neighbour = padded[:, 1 + dy:1 + dy + means.shape[1], 1 + dx:1 + dx + means.shape[2]]
+        flat &= np.abs(neighbour - means) < tolerance
+    mask = np.zeros(planes.shape, bool)
+    h, w = means.shape[1] * block, means.shape[2] * block
+    mask[:, :h, :w] = np.repeat(np.repeat(flat, block, axis=1), block, axis=2)
+    return mask
+
+
+def noise_level_function(planes, clip: np.ndarray, band: np.ndarray):
+    """Noise variance per plane and signal bin (4, B) and the bin's mean signal (4, B).
+
+    From differences of horizontally and vertically neighbouring same-colour pixels,
+    d = (a - b) / sqrt(2), binned by their mean; var from the trimmed mean of d^2 (robust to edges),
+    i.e. the flat-region local-variance method of Foi et al., "Practical Poissonian-Gaussian noise
+    modeling and fitting for single-image raw-data", IEEE TIP 2008, with a robust scale instead
+    of their ML fit. Column (row) banding adds its variance to the horizontal (vertical)
+    differences; it is subtracted. Pairs near the clipping level are excluded.
+    """
+    nb = len(NLF_EDGES) - 1
+    variance, level = np.full((4, nb), np.nan), np.full((4, nb), np.nan)
+    flat = flat_mask(planes)
+    for p in range(4):
+        top = (clip[p] if np.isfinite(clip[p]) else 1.0) - 0.06
+        pieces = []
+        for d_axis, excess in ((1, band[1]), (0, band[0])):
+            a, f = planes[p], flat[p]
+            lo = a[:, :-1] if d_axis == 1 else a[:-1]
+            hi = a[:, 1:] if d_axis == 1 else a[1:]
+            both = (f[:, :-1] & f[:, 1:]) if d_axis == 1 else (f[:-1] & f[1:])
+            pieces.append(((hi - lo)[both] / np.sqrt(2), ((hi + lo) / 2)[both],
+                           np.maximum(lo, hi)[both], excess))
+        for b in range(nb):
+            estimates, means = [], []
+            for d, m, mx, excess in pieces:
+                sel = (m >= NLF_EDGES[b]) & (m < NLF_EDGES[b + 1]) & (mx < top)
+                if sel.sum() >= 40:
+                    estimates.append(_robust_variance(d[sel]) - max(excess, 0.0))
+                    means.append(m[sel].mean())
+            if estimates:
+                variance[p, b], level[p, b] = np.mean(estimates), np.mean(means)
+    return variance, level
+
+
+def green_ratio(planes, green_positions, clip) -> np.ndarray:
+    """(1,) log(G2 / G1): the median over 4x4 blocks with both greens well exposed.
+
+    The two green sites of a Bayer tile sample the same colour one pixel apart, so their ratio
+    is 1 for any scene up to edge noise that the median removes; green imbalance shifts it.
+    """
+    g1, g2 = green_positions
+    blocks = block_means(planes[[g1, g2]], 4)
+    top = 0.9 * np.nanmin(np.where(np.isfinite(clip[[g1, g2]]), clip[[g1, g2]], 1.0))
+    ok = (blocks.min(0) > 0.03) & (blocks.max(0) < top)
+    if ok.sum() < 20:
+        return np.array([np.nan])
+    return np.array([np.median(np.log(blocks[1][ok] / blocks[0][ok]))])
+
+
+def shading_profile(planes, clip) -> np.ndarray:
+    """(4,) log-gain at the corners per plane, c1 + c2 of log g(r) = c1 r^2 + c2 r^4, from radial
+    gradients.
+
+    Radial gradient symmetry (Zheng, Yu, Kang, Lin & Kambhamettu, "Single-image vignetting
+    correction using radial gradient symmetry", CVPR 2008): in a scene without vignetting the
+    radial derivative of log brightness is symmetric about zero; vignetting g(r) adds
+    d log g / dr everywhere. Inside flat regions (`flat_mask`, signal well exposed) the mean
+    radial derivative per ring therefore measures d log g / dr = 2 c1 r + 4 c2 r^3, fitted by
+    least squares; any leftover scene bias is the same in measured and simulated files.
+    """
+    _, h, w = planes.shape
+    half_diagonal = np.hypot(h - 1, w - 1) / 2
+    y = (np.arange(h) - (h - 1) / 2)[:, None] / half_diagonal
+    x = (np.arange(w) - (w - 1) / 2)[None, :] / half_diagonal
+    r = np.broadcast_to(np.hypot(y, x), (h, w))
+    unit_y, unit_x = y / np.maximum(r, 1e-9), x / np.maximum(r, 1e-9)
+    inner = (slice(1, -1), slice(1, -1))
+    r_in = r[inner]
+    rings = np.minimum((r_in**2 * RINGS).astype(int), RINGS - 1)
+    flat_all = flat_mask(planes, relative=0.1)
+    out = np.full(4, np.nan)
+    for p in range(4):
+        top = 0.9 * (clip[p] if np.isfinite(clip[p]) else 1.0)
+        log_p = np.log(np.maximum(planes[p], 1e-4))
+        gy = (log_p[2:, 1:-1] - log_p[:-2, 1:-1]) / 2 * half_diagonal   # per unit of r
+        gx = (log_p[1:-1, 2:] - log_p[1:-1, :-2]) / 2 * half_diagonal
+        radial = gy * unit_y[inner] + gx * unit_x[inner]
+        level = planes[p][inner]
+        flat = flat_all[p][inner] & (level > 0.05) & (level < top)
+        rows, targets, weights = [], [], []
+        for k in range(RINGS):
+            sel = flat & (rings == k)
+            if sel.sum() < 50:
+                continue
+            rk = r_in[sel]
+            rows.append([2 * rk.mean(), 4 * np.mean(rk**3)])
+            targets.append(radial[sel].mean())
+            weights.append(np.sqrt(sel.sum()))
+        if len(rows) < 3:
+            continue
+        wts = np.asarray(weights)
+        c = np.linalg.lstsq(np.asarray(rows) * wts[:, None], np.asarray(targets) * wts, rcond=None)[0]
+        out[p] = c[0] + c[1]
+    return out
+
+
+def brightness(planes, r2, clip) -> np.ndarray:
+    """(1,) exposure of the file: mean of the 30th-70th percentiles of log2 signal in the image
+    centre (r^2 < 0.35, where shading is small). A global gain 2^e moves every percentile by
+    exactly e as long as fewer than 30% of the pixels are black or clipped, so the statistic is
+    equivariant to exposure; averaging nine percentiles smooths the steps of a piecewise-flat scene.
+    """
+    centre = planes[:, r2[0] < 0.35]
+    levels = np.quantile(np.log2(np.maximum(centre, 1e-4)), np.linspace(0.3, 0.7, 9))
+    return np.array([levels.mean()])
+
+
+def noise_correlation(planes) -> np.ndarray:
+    """(1,) log of robust var(a[j+2] - a[j]) / var(a[j+1] - a[j]) along rows, mean of planes.
+
+    For spatially white noise both are 2 sigma^2 (ratio 1, log 0); correlated noise (denoising,
+    compression, demosaicing) makes the lag-2 difference larger. No vocabulary cause changes it.
+    """
+    values = []
+    for plane, flat in zip(planes, flat_mask(planes)):
+        d1 = plane[:, 1:-1] - plane[:, :-2]
+        d2 = plane[:, 2:] - plane[:, :-2]
+        level = (plane[:, 2:] + plane[:, 1:-1] + plane[:, :-2]) / 3
+        sel = (level > 0.05) & (level < 0.6) & flat[:, 2:] & flat[:, :-2]   # flat, noise-dominated
+        if sel.sum() < 100:
+            continue
+        values.append(np.log(_robust_variance(d2[sel]) / max(_robust_variance(d1[sel]), 1e-20)))
+    if not values:
+        return np.array([np.nan])
+    return np.array([np.mean(values)])
+
+
+def outliers(planes, clip, threshold: float = 0.12):
+    """Full-mosaic (row, col) of pixels far from the median of their 8 same-colour neighbours,
+    and their values: candidate defective pixels (impulse detection by deviation from the
+    neighbourhood median, as in median-based impulse detectors, e.g. Chan, Ho & Nikolova,
+    "Salt-and-pepper noise removal by median-type noise detectors", IEEE TIP 2005). The
+    threshold grows with the local spread (MAD of the 3x3 neighbourhood) so edges rarely qualify."""
+    rows, cols, values = [], [], []
+    _, h, w = planes.shape
+    padded = np.pad(planes, ((0, 0), (1, 1), (1, 1)), mode="reflect")
+    neighbours = np.stack([padded[:, 1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+                           for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx])
+    middle = np.partition(neighbours, (3, 4), axis=0)
+    median = 0.5 * (middle[3] + middle[4])
+    absolute = np.partition(np.abs(neighbours - median), (3, 4), axis=0)
+    spread = _MAD_TO_STD * 0.5 * (absolute[3] + absolute[4])
+    hit = np.abs(planes - median) > threshold + 6 * spread
+    for p in range(4):
+        r, c = np.nonzero(hit[p])
+        rows.append(2 * r + p // 2)
+        cols.append(2 * c + p % 2)
+        values.append(planes[p][r, c])
+    return np.concatenate(rows), np.concatenate(cols), np.concatenate(values)
+
+
+def file_statistics(mosaic, info, profile, *, with_outliers: bool = True) -> dict:
+    """All statistics of one file (mosaic (H, W) DN, its DngInfo) as a dict of numpy arrays.
+
+    Keys: dark_floor (4), clip (4), band (2), nlf_var / nlf_level (4, B), iso, green (1),
+    shading (4), brightness (1), noise_corr (1), outliers (rows, cols, values), neutral (3).
+    """
+    black = np.resize(np.asarray(info.black_level, np.float64).reshape(-1), 4)
+    white = float(info.white_level)
+    raw = to_normalised_planes(mosaic, black, white)
+    span = white - black
+    floor = dark_floor(raw)
+    planes = raw - floor[:, None, None]
+    spike = clipping_level(raw, white, span)
+    # a spike at WhiteLevel is the tag's clamp (whatever the pedestal), not an early clip
+    clip = np.where(spike >= 1.0 - 0.5 / span, 1.0, spike - floor)
+    band = banding(planes)
+    nlf_var, nlf_level = noise_level_function(planes, clip, band)
+    r2 = radial_r2(planes.shape[1:])
+    greens = tuple(int(i) for i in np.flatnonzero(np.asarray(info.cfa_pattern) == 1)[:2])
+    from .. import fit as _fit
+    neutral = _fit.as_shot_neutral(info)
+    iso = info.iso if info.iso else float(np.sqrt(np.prod(np.asarray(profile.noise.iso_range, np.float64))))
+    return {
+        "dark_floor": floor, "clip": clip, "band": band, "nlf_var": nlf_var, "nlf_level": nlf_level,
+        "iso": float(iso), "green": green_ratio(planes, greens, clip),
+        "shading": shading_profile(planes, clip),
+        "brightness": brightness(planes, r2, clip), "noise_corr": noise_correlation(planes),
+        "outliers": outliers(planes, clip) if with_outliers else None, "neutral": None if neutral is None else np.asarray(neutral, np.float64),
+        "shape": tuple(np.shape(mosaic)),
+    }

@@ -1,0 +1,131 @@
+"""A synthetic camera and hidden-effect injection, for tests, benchmarks and self-checks.
+
+`demo_profile` is a made-up 12-bit RGGB camera (colour matrices invented for the purpose, a
+daylight illuminant population along its own CCT locus, a heteroscedastic noise model);
+`inject` returns a copy of a profile with one effect of the audit vocabulary changed, which is
+how a "measured" set with a known, hidden cause is produced.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from .. import illuminants as _illuminants
+from .. import profile as _profile
+from .. import sensor as _sensor
+from ..dng import DngColourModel
+from ..profile import ProfileInfo, SensorProfile
+
+# Invented XYZ -> camera matrices for Standard Light A (17) and D65 (21).
+_CM_A = [[0.92, -0.36, -0.02], [-0.40, 1.16, 0.27], [-0.04, 0.12, 0.70]]
+_CM_D65 = [[0.70, -0.18, -0.07], [-0.44, 1.20, 0.26], [-0.09, 0.18, 0.64]]
+
+
+def demo_profile(*, seed: int = 0, n_illuminants: int = 40, dtype=np.float32) -> SensorProfile:
+    """A 12-bit (black 256, white 4095) RGGB camera with a Gaussian illuminant model fitted to
+    points scattered around its 3000-7000 K locus, exposure spread 0.25 stops, noise growing with
+    ISO 100-800."""
+    colour = DngColourModel.from_tags([17, 21], [_CM_A, _CM_D65], dtype=dtype)
+    rng = np.random.default_rng(seed)
+    locus = _illuminants.locus_chromaticities(colour, 64, cct_range=(3000.0, 7000.0))
+    points = locus[rng.integers(0, len(locus), n_illuminants)] + rng.normal(0, 0.015, (n_illuminants, 2))
+    illuminants = _illuminants.fit_gaussian(points, dtype=dtype)
+    noise = _sensor.NoiseModel(
+        iso=jnp.asarray([100.0, 800.0], dtype),
+        shot=jnp.asarray([[1.2e-4] * 4, [9.6e-4] * 4], dtype),
+        read=jnp.asarray([[2.0e-6] * 4, [1.6e-5] * 4], dtype),
+        iso_range=jnp.asarray([100.0, 400.0], dtype))
+    return SensorProfile(
+        cfa_pattern=jnp.asarray([0, 1, 1, 2], jnp.int32),
+        black_level=jnp.full(4, 256.0, dtype), white_level=jnp.asarray(4095.0, dtype),
+        baseline_exposure=jnp.asarray(0.0, dtype), colour=colour, illuminants=illuminants,
+        exposure=_sensor.ExposureModel(log2_mean=jnp.asarray(0.0, dtype), log2_std=jnp.asarray(0.25, dtype)),
+        noise=noise, effects=_sensor.no_effects(dtype),
+        info=ProfileInfo(name="demo", unique_camera_model="g2r_jax demo camera",
+                         calibration_illuminants=(17, 21), provenance="synthetic (g2r_jax.audit.synthetic)"))
+
+
+def _effects(profile, **changes):
+    return _profile.replace(profile, effects=_profile.replace(profile.effects, **changes))
+
+
+def random_magnitude(cause: str, rng) -> dict:
+    """A modest random magnitude for `cause` (a few percent of the range for offsets and gains,
+    a few tenths of corner fall-off for shading), as the keyword arguments of `inject`."""
+    sign = rng.choice([-1.0, 1.0])
+    if cause == "black_level":
+        return {"offset": float(rng.uniform(0.01, 0.03))}
+    if cause == "white_level":
+        return {"clip": float(rng.uniform(0.90, 0.97))}
+    if cause == "green_imbalance":
+        return {"ratio": float(1 + sign * rng.uniform(0.02, 0.05))}
+    if cause == "lens_shading":
+        return {"corner": float(rng.uniform(0.2, 0.4)), "colour": float(rng.uniform(0.0, 0.1))}
+    if cause == "noise_model":
+        return {"scale": float(rng.choice([rng.uniform(1.3, 1.7), rng.uniform(0.5, 0.7)]))}
+    if cause == "banding":
+        return {"std": float(rng.uniform(0.002, 0.004)), "axis": str(rng.choice(["row", "column"]))}
+    if cause == "exposure_distribution":
+        return {"stops": float(sign * rng.uniform(0.45, 0.75))}
+    if cause == "defective_pixels":
+        return {"count": int(rng.integers(10, 40)), "seed": int(rng.integers(1 << 30))}
+    if cause == "illuminant_distribution":
+        return {"shift": float(rng.uniform(0.08, 0.15)), "seed": int(rng.integers(1 << 30))}
+    raise ValueError(f"unknown cause {cause!r}")
+
+
+def inject(profile: SensorProfile, cause: str, *, height: int = 200, width: int = 300, **magnitude) -> SensorProfile:
+    """The profile with one effect added (the "true camera" behind a measured set).
+
+    Magnitudes: black_level `offset` (fraction of range, all positions); white_level `clip`;
+    green_imbalance `ratio` (Gb / Gr); lens_shading `corner` fall-off (gain 1 - corner at the
+    corners, red and blue differing by +-`colour`); noise_model `scale` (shot and read variance);
+    banding `std` and `axis`; exposure_distribution `stops`; defective_pixels `count`;
+    illuminant_distribution `shift` (a second lamp population, 40% of the files, offset by
+    `shift` in (r/g, b/g) across the main axis of the profile's Gaussian, like lamps off the CCT locus).
+    """
+    effects = profile.effects
+    dtype = effects.black_pedestal.dtype
+    if cause == "black_level":
+        span = float(profile.white_level) - np.asarray(profile.black_level)
+        return _effects(profile, black_pedestal=jnp.asarray(magnitude["offset"] * span, dtype))
+    if cause == "white_level":
+        return _effects(profile, clip_level=jnp.asarray(magnitude["clip"], dtype))
+    if cause == "green_imbalance":
+        gain = np.ones(4)
+        gain[int(np.flatnonzero(np.asarray(profile.cfa_pattern) == 1)[1])] = magnitude["ratio"]
+        return _effects(profile, channel_gain=jnp.asarray(gain, dtype))
+    if cause == "lens_shading":
+        corner, colour = magnitude["corner"], magnitude.get("colour", 0.0)
+        per_colour = {0: corner * (1 + colour), 1: corner, 2: corner * (1 - colour)}
+        a1 = np.array([-per_colour[int(c)] for c in np.asarray(profile.cfa_pattern)])
+        return _effects(profile, shading=jnp.asarray(np.stack([a1, np.zeros(4)], 1), dtype))
+    if cause == "noise_model":
+        noise = _profile.replace(profile.noise, shot=profile.noise.shot * magnitude["scale"],
+                                 read=profile.noise.read * magnitude["scale"])
+        return _profile.replace(profile, noise=noise)
+    if cause == "banding":
+        field = "row_noise_std" if magnitude["axis"] == "row" else "column_noise_std"
+        return _effects(profile, **{field: jnp.asarray(magnitude["std"], dtype)})
+    if cause == "exposure_distribution":
+        exposure = _profile.replace(profile.exposure, log2_mean=profile.exposure.log2_mean + magnitude["stops"])
+        return _profile.replace(profile, exposure=exposure)
+    if cause == "defective_pixels":
+        rng = np.random.default_rng(magnitude.get("seed", 0))
+        count = magnitude["count"]
+        flat = rng.choice(height * width, count, replace=False)
+        values = np.where(rng.random(count) < 0.7, 1.0, 0.0)
+        return _effects(profile, defect_rows=jnp.asarray(flat // width, jnp.int32),
+                        defect_cols=jnp.asarray(flat % width, jnp.int32), defect_values=jnp.asarray(values, dtype))
+    if cause == "illuminant_distribution":
+        model = profile.illuminants
+        means = np.asarray(model.means, np.float64)
+        chol = np.asarray(model.cholesky, np.float64)
+        cov = chol @ np.swapaxes(chol, -1, -2)
+        minor = np.linalg.eigh(cov[0])[1][:, 0]          # off the main (locus) direction
+        shifted = means + magnitude["shift"] * minor * np.sign(minor[0] or 1.0)
+        mixture = _illuminants._model([0.6, 0.4], np.concatenate([means, shifted]), np.concatenate([cov, cov]),
+                                      None, "mixture", False, dtype)
+        return _profile.replace(profile, illuminants=mixture)
+    raise ValueError(f"unknown cause {cause!r}")
