@@ -163,16 +163,20 @@ def mixture_log_likelihood(model: IlluminantModel, chromaticities) -> np.ndarray
 
 
 def fit_mixture(chromaticities, *, max_components: int = 4, use_hull: bool = True, seed: int = 0,
-                restarts: int = 8, dtype=np.float32) -> IlluminantModel:
+                restarts: int = 8, min_points: float = 5.0, dtype=np.float32) -> IlluminantModel:
     """Gaussian mixture by EM, the number of components chosen by BIC (Schwarz 1978).
 
-    Each component needs at least 3 points on average, so small sets fall back to one.
+    A fit where any component explains fewer than `min_points` illuminants is rejected (a
+    component on a handful of points is a degenerate spike, not a lamp population).
     """
     points = np.asarray(chromaticities, np.float64)
     rng = np.random.default_rng(seed)
     best = None
-    for k in range(1, max(1, min(max_components, len(points) // 3)) + 1):
+    for k in range(1, max(1, min(max_components, int(len(points) // min_points))) + 1):
         fits = [_em_mixture(points, k, rng) for _ in range(restarts if k > 1 else 1)]
+        fits = [f for f in fits if k == 1 or np.min(f[0]) * len(points) >= min_points]
+        if not fits:
+            continue
         weights, means, covariances, log_likelihood = max(fits, key=lambda f: f[3])
         parameters = k * 5 + (k - 1)
         bic = parameters * np.log(len(points)) - 2 * log_likelihood
