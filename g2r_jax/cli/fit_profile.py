@@ -73,6 +73,23 @@ def _calibration_infos(path: Path):
     return [read_dng_info(path)]
 
 
+def _one_camera(infos, failures):
+    """Keep the largest group of files from one camera (model and calibration illuminants); report
+    the others as failures rather than mixing two cameras' colour in one profile."""
+    groups = {}
+    for info in infos:
+        groups.setdefault((info.unique_camera_model, tuple(info.calibration_illuminants)), []).append(info)
+    if len(groups) <= 1:
+        return infos
+    keep = max(groups, key=lambda k: len(groups[k]))
+    for key, members in groups.items():
+        if key != keep:
+            failures += [f"{i.path}: a different camera ({key[0] or 'unnamed'}, calibration illuminants "
+                         f"{key[1]}) from the {len(groups[keep])} file(s) of {keep[0] or 'unnamed'} being fitted"
+                         for i in members]
+    return groups[keep]
+
+
 def body(args) -> int:
     import numpy as np
 
@@ -108,6 +125,7 @@ def body(args) -> int:
                 infos.append(info)
             except Exception as error:  # noqa: BLE001 - report and go on
                 failures.append(str(error))
+        infos = _one_camera(infos, failures)
         chromaticities = None
         source = f"{len(infos)} DNG file(s) from {', '.join(str(d) for d in args.dng_dirs)}"
     for line in failures:
