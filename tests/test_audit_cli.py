@@ -1,0 +1,74 @@
+"""g2r-diagnose end to end on DNG files written to disk, report format, and one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from g2r_jax.audit import CAUSES, synthetic
+from g2r_jax.cli.diagnose import main
+from g2r_jax.io.dng_write import write_dng
+from g2r_jax.profile import save_profile
+from audit_helpers import measured_set
+
+
+@pytest.fixture(scope="module")
+def camera(tmp_path_factory):
+    """A folder of 16 small DNGs from the demo camera with a black pedestal, and its clean profile."""
+    root = tmp_path_factory.mktemp("camera")
+    base = synthetic.demo_profile()
+    truth = synthetic.inject(base, "black_level", offset=0.02)
+    folder = root / "dng"
+    folder.mkdir()
+    for i, (mosaic, info) in enumerate(measured_set(truth, 5, n=16, height=120, width=180)):
+        write_dng(folder / f"IMG_{i:03d}.dng", mosaic, info)
+    save_profile(base, root / "profile.json")
+    return root
+
+
+def test_cli_writes_report_and_extended_profile(camera, capsys):
+    report_path = camera / "REPORT.json"
+    status = main(["--profile", str(camera / "profile.json"), "--measured", str(camera / "dng"),
+                   "--report", str(report_path), "--extended-profile", str(camera / "extended.json"),
+                   "--seed", "3", "--quiet"])
+    assert status == 0
+    report = json.loads(report_path.read_text())
+    assert {"findings", "unexplained"} <= set(report)
+    for finding in report["findings"]:
+        assert finding["cause"] in CAUSES + ("unexplained",)
+        assert {"cause", "significant", "score", "statistic", "evidence", "params", "gain"} <= set(finding)
+    scores = [f["score"] for f in report["findings"] if f["significant"]]
+    assert scores == sorted(scores, reverse=True)
+    first = report["findings"][0]
+    assert first["cause"] == "black_level" and first["significant"]
+    assert first["gain"]["heldout"] is True and first["gain"]["after"] < first["gain"]["before"]
+    extended = json.loads((camera / "extended.json").read_text())
+    assert extended["effects"]["black_pedestal"][0] == pytest.approx(0.02 * (4095 - 256), rel=0.15)
+    assert "black_level" in capsys.readouterr().out
+    assert (camera / "REPORT_html" / "report.html").exists()
+
+
+def test_cli_missing_folder_is_one_line(camera, capsys):
+    status = main(["--profile", str(camera / "profile.json"), "--measured", str(camera / "nope"),
+                   "--report", str(camera / "r.json")])
+    err = capsys.readouterr().err.strip()
+    assert status != 0 and len(err.splitlines()) == 1 and "nope" in err and "Traceback" not in err
+
+
+def test_cli_bad_dng_names_the_file(camera, tmp_path, capsys):
+    folder = tmp_path / "bad"
+    folder.mkdir()
+    (folder / "broken.dng").write_text("not a dng")
+    status = main(["--profile", str(camera / "profile.json"), "--measured", str(folder),
+                   "--report", str(tmp_path / "r.json")])
+    err = capsys.readouterr().err.strip()
+    assert status != 0 and len(err.splitlines()) == 1 and "broken.dng" in err
+
+
+def test_cli_bad_profile_names_the_file(camera, tmp_path, capsys):
+    (tmp_path / "p.json").write_text("{}")
+    status = main(["--profile", str(tmp_path / "p.json"), "--measured", str(camera / "dng"),
+                   "--report", str(tmp_path / "r.json")])
+    err = capsys.readouterr().err.strip()
+    assert status != 0 and "p.json" in err and len(err.splitlines()) == 1
