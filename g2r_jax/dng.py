@@ -100,6 +100,7 @@ class DngColourModel(eqx.Module):
 
         **Returns:** a `DngColourModel`. Raises ValueError on missing or malformed tags.
         """
+        dtype = jax.dtypes.canonicalize_dtype(dtype)  # float64 only inside an x64 context
         codes = [int(c) for c in calibration_illuminants]
         matrices = [np.asarray(m, np.float64).reshape(3, 3) for m in color_matrices]
         if not matrices:

@@ -194,6 +194,7 @@ def locus_chromaticities(colour_model, n_points: int = 32, cct_range=None) -> np
     matrices interpolated for it. Returns (n_points, 2) chromaticities (r/g, b/g)."""
     from . import colour as _colour
     from . import dng as _dng
+    from ._x64 import enable_x64
 
     low, high = (np.asarray(colour_model.calibration_cct, np.float64) if cct_range is None
                  else np.asarray(cct_range, np.float64))
@@ -201,8 +202,9 @@ def locus_chromaticities(colour_model, n_points: int = 32, cct_range=None) -> np
         low, high = 2850.0, 6500.0  # one calibration illuminant: span tungsten to daylight
     ccts = 1e6 / np.linspace(1e6 / low, 1e6 / high, n_points)
     xys = _colour.CCT_to_xy(ccts)
-    model64 = jax.tree_util.tree_map(lambda a: np.asarray(a, np.float64) if eqx.is_array(a) else a, colour_model)
-    neutrals = np.stack([np.asarray(_dng.xy_to_camera_neutral(jnp.asarray(xy), model64)) for xy in xys])
+    with enable_x64():
+        model64 = jax.tree_util.tree_map(lambda a: jnp.asarray(a, jnp.float64) if eqx.is_array(a) else a, colour_model)
+        neutrals = np.asarray(jax.vmap(lambda xy: _dng.xy_to_camera_neutral(xy, model64))(jnp.asarray(xys)))
     return neutral_to_chromaticity(neutrals)
 
 
