@@ -16,13 +16,12 @@ byte-identical files, and `write_dng` replaces the target atomically.
 from __future__ import annotations
 
 import io
-import os
-import tempfile
 from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
 
+from g2r_jax.io.atomic import atomic_write_bytes
 from g2r_jax.io.dng_info import DngError, DngInfo
 from g2r_jax.io.dng_read import TAGS, require_bayer_cfa, require_colour_tags
 
@@ -255,19 +254,7 @@ def write_dng(path, mosaic: np.ndarray, info: DngInfo) -> None:
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise DngError(path, "output folder does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(folder))
     try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException as exc:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        if isinstance(exc, OSError):
-            raise DngError(path, f"cannot write ({exc.strerror or exc})") from exc
-        raise
+        atomic_write_bytes(path, data)
+    except OSError as exc:
+        raise DngError(path, f"cannot write ({exc.strerror or exc})") from exc
