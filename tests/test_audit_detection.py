@@ -34,7 +34,7 @@ def _check_named_first(cause, base, rng_seed):
     return report
 
 
-FAST = ("black_level", "lens_shading", "defective_pixels")
+FAST = ("black_level", "lens_shading")
 
 
 @pytest.mark.parametrize("cause", FAST)
