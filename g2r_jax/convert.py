@@ -40,6 +40,7 @@ class ConvertOptions:
     batch_size: int = 4
     workers: int = 2
     crop_odd: bool = False
+    lens_shading: bool = False    # divide by the camera's lens-shading gain map and write its opcode
     progress: bool = True
 
 
@@ -66,8 +67,23 @@ def noise_profile_tag(shot, read, cfa_pattern) -> np.ndarray:
     return np.stack([[shot[cfa == c].mean(), read[cfa == c].mean()] for c in range(3)])
 
 
-def dng_info_for(profile, metadata: dict, height: int, width: int, *, noise: bool) -> DngInfo:
-    """The DNG tags of one simulated image: the camera's tags plus what was sampled."""
+def lens_shading_for(profile, height: int, width: int):
+    """(gain planes (4, H/2, W/2), OpcodeList2 bytes rescaled to this size) from the profile's
+    lens-shading opcodes; ValueError if the profile has none."""
+    from .lens_shading import rescale_opcode_list, shading_gain_planes
+
+    lists = dict(profile.info.opcode_lists)
+    if "OpcodeList2" not in lists:
+        raise ValueError(f"profile {profile.info.name!r} has no lens-shading opcodes (OpcodeList2)")
+    data = rescale_opcode_list(bytes.fromhex(lists["OpcodeList2"]), None, (height, width), shading_only=True)
+    gain = shading_gain_planes({"OpcodeList2": data}, height, width, tuple(np.asarray(profile.cfa_pattern)))
+    return gain, data
+
+
+def dng_info_for(profile, metadata: dict, height: int, width: int, *, noise: bool,
+                 opcode_list2: bytes | None = None) -> DngInfo:
+    """The DNG tags of one simulated image: the camera's tags plus what was sampled (and the
+    lens-shading OpcodeList2 when its inverse was applied)."""
     colour, info = profile.colour, profile.info
     n = 1 if len(info.calibration_illuminants) == 1 else 2
     matrices = lambda m: tuple(np.asarray(m[:n], np.float64))
@@ -84,7 +100,8 @@ def dng_info_for(profile, metadata: dict, height: int, width: int, *, noise: boo
         as_shot_neutral=np.asarray(metadata["neutral"], np.float64),
         baseline_exposure=float(profile.baseline_exposure),
         noise_profile=noise_profile_tag(shot, read, profile.cfa_pattern) if has_noise else None,
-        iso=float(np.round(metadata["iso"])))
+        iso=float(np.round(metadata["iso"])),
+        opcode_lists={"OpcodeList2": opcode_list2} if opcode_list2 else {})
 
 
 def _transfer_for(path: Path, transfer: str) -> str:
@@ -115,16 +132,18 @@ _COMPILED = {}
 
 def _batched_unprocess(options: ConvertOptions, transfer: str, with_neutral: bool):
     """One jitted vmap(unprocess) per option set (jax caches the compiled code per shape)."""
-    signature = (options.noise, options.effects, options.recipe, transfer, with_neutral, options.iso is not None)
+    signature = (options.noise, options.effects, options.recipe, transfer, with_neutral, options.iso is not None,
+                 options.lens_shading)
 
     if signature not in _COMPILED:
-        def one(key, image, profile, neutral, iso):
+        def one(key, image, profile, neutral, iso, lens_gain):
             return unprocess(key, image, profile, transfer=transfer, noise=options.noise,
                              effects=options.effects, recipe=options.recipe,
                              neutral=neutral if with_neutral else None,
-                             iso=iso if options.iso is not None else None)
+                             iso=iso if options.iso is not None else None,
+                             lens_gain=lens_gain if options.lens_shading else None)
 
-        _COMPILED[signature] = jax.jit(jax.vmap(one, in_axes=(0, 0, None, 0, None)))
+        _COMPILED[signature] = jax.jit(jax.vmap(one, in_axes=(0, 0, None, 0, None, None)))
     return _COMPILED[signature]
 
 
@@ -165,10 +184,22 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
         from tqdm import tqdm
         progress = tqdm(total=len(inputs), unit="image", desc="g2r-convert")
 
+    lens = {}
+
+    def lens_for(height, width):
+        if (height, width) not in lens:
+            lens[(height, width)] = lens_shading_for(profile, height, width)
+        return lens[(height, width)]
+
+    if options.lens_shading:
+        lens_shading_for(profile, 2, 2)  # fail early, before any file, if the profile has no opcodes
+
     def write(index, path, mosaic, metadata):
         output = out_dir / f"{path.stem}.dng"
         try:
-            info = dng_info_for(profile, metadata, mosaic.shape[0], mosaic.shape[1], noise=options.noise)
+            opcodes = lens_for(*mosaic.shape)[1] if options.lens_shading else None
+            info = dng_info_for(profile, metadata, mosaic.shape[0], mosaic.shape[1], noise=options.noise,
+                                opcode_list2=opcodes)
             atomic_write_bytes(output, write_dng_bytes(np.asarray(mosaic), info, where=output))
         except DngError:
             raise
@@ -198,7 +229,10 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
             neutral_rows = (jnp.asarray(np.stack([neutrals[i] for i, _ in padded]), jnp.float32) if with_neutral
                             else jnp.ones((len(padded), 3), jnp.float32))
             iso = jnp.asarray(options.iso if options.iso is not None else 0.0, jnp.float32)
-            mosaics, metadata = _batched_unprocess(options, transfer, with_neutral)(keys, images, profile, neutral_rows, iso)
+            lens_gain = (jnp.asarray(lens_for(images.shape[1], images.shape[2])[0]) if options.lens_shading
+                         else jnp.ones((), jnp.float32))
+            mosaics, metadata = _batched_unprocess(options, transfer, with_neutral)(keys, images, profile, neutral_rows,
+                                                                                     iso, lens_gain)
             mosaics = np.asarray(mosaics)
             metadata = {k: np.asarray(v) for k, v in metadata.items()}
             for j, (index, _) in enumerate(batch):

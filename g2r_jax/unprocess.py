@@ -59,8 +59,19 @@ def matrix_srgb_to_white_balanced_camera_published(cct, colour_model):
 
 
 def cfa_planes(linear):
-    """(H, W, 3) -> (4, H/2, W/2, 3): the pixels of each 2x2 tile position."""
-    return jnp.stack([linear[0::2, 0::2], linear[0::2, 1::2], linear[1::2, 0::2], linear[1::2, 1::2]])
+    """(H, W, 3) -> (4, H/2, W/2, 3): the pixels of each 2x2 tile position.
+
+    Plane p = 2 * (row % 2) + (col % 2) as a reshape and transpose, which XLA fuses as index
+    arithmetic (a stack of strided slices is materialised instead)."""
+    height, width = linear.shape[0], linear.shape[1]
+    tiles = linear.reshape(height // 2, 2, width // 2, 2, linear.shape[2])
+    return tiles.transpose(1, 3, 0, 2, 4).reshape(4, height // 2, width // 2, linear.shape[2])
+
+
+def _dot_channels(rgb, weights):
+    """sum_c rgb[..., c] * weights[..., c], written out: an einsum over 3 channels becomes a
+    dot that XLA runs on a materialised copy of its operands, this fuses with its neighbours."""
+    return rgb[..., 0] * weights[..., 0] + rgb[..., 1] * weights[..., 1] + rgb[..., 2] * weights[..., 2]
 
 
 def mosaic_camera_rgb(planes_rgb, srgb_to_wb_camera, gains, cfa_pattern, highlight_safe: bool):
@@ -69,19 +80,19 @@ def mosaic_camera_rgb(planes_rgb, srgb_to_wb_camera, gains, cfa_pattern, highlig
     Un-white-balance multiplies by the neutral; with `highlight_safe` the gain is eased to 1
     for near-white pixels (Brooks et al. 2019, safe_invert_gains) so highlights stay neutral.
     """
-    rows = srgb_to_wb_camera[cfa_pattern]                        # (4, 3) one row per tile position
-    kept = jnp.einsum("phwc,pc->phw", planes_rgb, rows)
+    rows = srgb_to_wb_camera[cfa_pattern][:, None, None, :]      # (4, 1, 1, 3) one row per tile position
+    kept = _dot_channels(planes_rgb, rows)
     gain = gains[cfa_pattern][:, None, None]
     if not highlight_safe:
         return kept * gain
-    gray = jnp.einsum("phwc,c->phw", planes_rgb, jnp.mean(srgb_to_wb_camera, axis=0))
+    gray = _dot_channels(planes_rgb, jnp.mean(srgb_to_wb_camera, axis=0))
     mask = (jnp.maximum(gray - HIGHLIGHT_INFLECTION, 0.0) / (1.0 - HIGHLIGHT_INFLECTION)) ** 2
     return kept * jnp.maximum(mask + (1.0 - mask) * gain, gain)
 
 
 def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=None,
               exposure_gain=None, noise: bool = True, effects: bool = True,
-              highlight_safe: bool = True, recipe: str = "dng", quantize: bool = True):
+              highlight_safe: bool = True, recipe: str = "dng", quantize: bool = True, lens_gain=None):
     """Turn one CG image into a RAW mosaic of the profiled camera.
 
     **Arguments:**
@@ -96,6 +107,9 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     - `recipe`: 'dng' (exact DNG colour model) or 'published' (the Graphics2RAW code's
       approximation; see the README).
     - `quantize`: return uint16 DN (True) or unrounded float32 DN (False).
+    - `lens_gain`: optional (4, H/2, W/2) gain a DNG renderer applies from the camera's
+      lens-shading opcodes (`g2r_jax.lens_shading.shading_gain_planes`); the raw is divided by
+      it, so that a renderer applying the opcode gets the scene back.
 
     **Returns:** `(mosaic, metadata)`: mosaic (H, W) in DN between the black and white levels;
     metadata a dict of arrays: neutral (3,), xy (2,), cct, iso, exposure_gain, noise_shot (4,),
@@ -139,6 +153,8 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     # 6. Optics and sensor: shading and channel gains, noise at the drawn ISO, readout effects.
     if effects:
         planes = _sensor.apply_optical_effects(planes, profile.effects)
+    if lens_gain is not None:
+        planes = planes / lens_gain
     iso = _sensor.sample_iso(k_iso, profile.noise) if iso is None else jnp.asarray(iso, dtype)
     shot, read = _sensor.noise_parameters(iso, profile.noise)
     if noise:

@@ -165,3 +165,27 @@ def test_fit_profile_from_illuminant_list_and_noise_table(tmp_path, shared_data)
     profile = load_profile(out)
     assert profile.illuminants.kind == "gaussian"
     np.testing.assert_allclose(np.asarray(profile.noise.iso), [100, 200, 400, 800, 1600, 3200])
+
+
+def test_lens_shading_option_divides_by_the_written_opcode_gain(tmp_path, capsys):
+    from g2r_jax.io.dng_read import read_dng_info
+    from g2r_jax.lens_shading import shading_gain_planes
+    from g2r_jax.sensor import to_planes
+
+    folder = tmp_path / "in"
+    folder.mkdir()
+    Image.fromarray(np.full((64, 96, 3), 150, np.uint8)).save(folder / "flat.png")
+    common = [str(folder), "--profile", "gopro_hero6", "--no-noise", "--seed", "1", "--no-progress"]
+    assert convert(common + ["-o", str(tmp_path / "plain")]) == 0
+    assert convert(common + ["-o", str(tmp_path / "shaded"), "--lens-shading"]) == 0
+    plain = rawpy.imread(str(tmp_path / "plain" / "flat.dng")).raw_image.astype(float)
+    shaded = rawpy.imread(str(tmp_path / "shaded" / "flat.dng")).raw_image.astype(float)
+    info = read_dng_info(tmp_path / "shaded" / "flat.dng")
+    assert "OpcodeList2" in info.opcode_lists and "OpcodeList2" not in read_dng_info(tmp_path / "plain" / "flat.dng").opcode_lists
+    gain = shading_gain_planes(info.opcode_lists, 64, 96, info.cfa_pattern)
+    black = float(info.black_level[0])
+    restored = np.asarray(to_planes(shaded - black)) * gain
+    np.testing.assert_allclose(restored, np.asarray(to_planes(plain - black)), atol=1.5)
+    assert gain.max() > 1.5  # the corners really were darkened
+    assert convert(common + ["-o", str(tmp_path / "x"), "--lens-shading", "--profile", "Canon600D"]) == 2
+    assert "no lens-shading opcodes" in capsys.readouterr().err

@@ -29,6 +29,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--batch-size", type=int, default=4)
     parser.add_argument("--workers", type=int, default=2, help="decode/encode threads")
     parser.add_argument("--crop-odd", action="store_true", help="drop the last row/column of odd-sized images")
+    parser.add_argument("--lens-shading", action="store_true",
+                        help="apply the inverse of the camera's lens shading (profile OpcodeList2) and write the opcode")
     parser.add_argument("--engine", choices=["local", "ray"], default="local")
     parser.add_argument("--example", action="store_true", help="convert the built-in example scene")
     parser.add_argument("--no-progress", action="store_true")
@@ -99,7 +101,7 @@ def body(args) -> int:
             raise ValueError(f"{args.illuminants}: {len(neutrals)} illuminants for {len(files)} inputs")
     options = ConvertOptions(seed=args.seed, iso=args.iso, noise=not args.no_noise, effects=not args.no_effects,
                              transfer=args.transfer, recipe=args.recipe, batch_size=max(1, args.batch_size),
-                             workers=max(1, args.workers), crop_odd=args.crop_odd,
+                             workers=max(1, args.workers), crop_odd=args.crop_odd, lens_shading=args.lens_shading,
                              progress=not args.no_progress and sys.stderr.isatty())
     for line in errors:
         print(f"g2r-convert: error: {line}", file=sys.stderr)
