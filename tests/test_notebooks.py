@@ -2,7 +2,8 @@
 
 The kernel is this interpreter (a kernel spec written to a temporary folder), so the notebooks see the
 same installed g2r_jax as the tests. Notebooks that read ../shared/data (those naming the
-G2R_JAX_SHARED_DATA override) also run once with that folder hidden, as on a user's fresh clone.
+G2R_JAX_SHARED_DATA override) also run with that folder hidden, as on a user's fresh clone (marked
+slow where the folder exists, so the default run executes every notebook once).
 Before every `plt.show()` a check injected by the test asserts that each figure has axis labels and
 a legend. Stored notebooks must carry no outputs, so diffs stay readable.
 """
@@ -70,10 +71,13 @@ def _reads_shared_data(path: Path) -> bool:
 
 
 def _cases():
+    # Each notebook runs once in the default (not slow) run, on whatever data is there; where the
+    # shared data is present, the extra fresh-clone run of the notebooks that read it is marked slow.
+    fresh_clone_marks = [pytest.mark.slow] if SHARED_DATA.is_dir() else []
     for path in NOTEBOOKS:
         yield pytest.param(path, "shared-data", id=f"{path.stem}[shared-data]")
         if _reads_shared_data(path):
-            yield pytest.param(path, "no-shared-data", id=f"{path.stem}[no-shared-data]")
+            yield pytest.param(path, "no-shared-data", id=f"{path.stem}[no-shared-data]", marks=fresh_clone_marks)
 
 
 def _run(path: Path, kernel_specs: KernelSpecManager) -> float:
@@ -89,7 +93,7 @@ def _run(path: Path, kernel_specs: KernelSpecManager) -> float:
 
 def test_there_are_notebooks():
     names = {path.name for path in NOTEBOOKS}
-    assert {"illuminant_distributions.ipynb", "quick_start.ipynb"} <= names
+    assert {"illuminant_distributions.ipynb", "quick_start.ipynb", "measured_data_audit.ipynb"} <= names
 
 
 @pytest.mark.parametrize("path, data", list(_cases()))
