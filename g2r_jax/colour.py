@@ -131,16 +131,15 @@ def matrix_bradford(xy_source, xy_target):
 
 
 def CCT_to_xy(cct) -> np.ndarray:
-    """xy of a blackbody-like white at `cct` (numpy; used at fit time only).
+    """xy of a white at `cct` (numpy; used at fit time only), without a kink between lamp and daylight.
 
-    CIE daylight locus (CIE 15:2004 eq. 3.3) from 4000 K up, Kang et al. (2002) Planckian
-    approximation below; both from colour-science.
+    The Planckian locus (Kang et al. 2002 approximation) below 4000 K, the CIE daylight locus
+    (CIE 15:2004 eq. 3.3) above 5000 K, and a smoothstep blend of the two in between; both
+    curves from colour-science. Standard Light A lies on the first, D65 on the second.
     """
     cct = np.atleast_1d(np.asarray(cct, dtype=np.float64))
-    out = np.empty(cct.shape + (2,))
-    for i, t in enumerate(cct):
-        if t >= 4000:
-            out[i] = colour.temperature.CCT_to_xy_CIE_D(t)
-        else:
-            out[i] = colour.temperature.CCT_to_xy_Kang2002(t)
-    return out
+    planckian = np.stack([colour.temperature.CCT_to_xy_Kang2002(t) for t in cct])
+    daylight = np.stack([colour.temperature.CCT_to_xy_CIE_D(np.clip(t, 4000, 25000)) for t in cct])
+    blend = np.clip((cct - 4000.0) / 1000.0, 0.0, 1.0)
+    blend = (blend * blend * (3 - 2 * blend))[:, None]
+    return (1 - blend) * planckian + blend * daylight
