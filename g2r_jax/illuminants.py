@@ -13,6 +13,8 @@ Sampling is pure JAX (vmap over keys); fitting is numpy at profile-build time.
 
 from __future__ import annotations
 
+import functools
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -74,6 +76,7 @@ def neutral_to_chromaticity(neutral):
     return np.stack([neutral[..., 0] / neutral[..., 1], neutral[..., 2] / neutral[..., 1]], -1)
 
 
+@functools.partial(jax.jit, static_argnames="n")
 def sample_neutrals(key, model: IlluminantModel, n: int):
     """`n` camera neutrals (n, 3) drawn independently (vmapped `sample_chromaticity`)."""
     keys = jax.random.split(key, n)
@@ -152,7 +155,8 @@ def _em_mixture(points, k, rng, iterations=200, floor=1e-6):
 
 
 def mixture_log_likelihood(model: IlluminantModel, chromaticities) -> np.ndarray:
-    """Per-point log density of the mixture (hull ignored), numpy."""
+    """Per-point log density of the mixture, numpy. The hull is ignored: a point outside it gets
+    a finite density although the hull-restricted sampler never produces it."""
     points = np.asarray(chromaticities, np.float64)
     weights = np.asarray(model.weights, np.float64)
     means = np.asarray(model.means, np.float64)
