@@ -62,6 +62,19 @@ def _noise_scales(measured, simulated, profile):
     return shot_scale, read_scale
 
 
+def _per_colour(profile, values):
+    """Average over the CFA positions of one colour (the two greens of a Bayer tile).
+
+    Lens and colour shading is a property of the optics and the colour filter, so both green
+    positions share one fall-off. Fitting them apart lets the noise of two estimates become a
+    radial Gr/Gb gain difference in the extended profile, which the next round then "finds" as
+    green imbalance; a Gr/Gb gain mismatch is `green_imbalance`'s parameter, not shading's.
+    """
+    cfa = np.asarray(profile.cfa_pattern)
+    values = np.asarray(values, np.float64)
+    return np.array([values[cfa == cfa[p]].mean() for p in range(len(values))])
+
+
 def _shading_fit(profile, delta_log_corner):
     """Per position (a1, a2) so that 1 + a1 t + a2 t^2 ~ old gain(t) * exp(delta * t), t = r^2."""
     t = np.linspace(0, 1, 21)
@@ -90,7 +103,7 @@ def fit(cause: str, measured: list, simulated: list, profile, *, seed: int = 0) 
         ratio = float(np.exp(_delta(cause, measured, simulated, profile)[0]) * gain[greens[1]] / gain[greens[0]])
         return {"green2_over_green1": ratio, "positions": [int(g) for g in greens]}
     if cause == "lens_shading":
-        shading = _shading_fit(profile, _delta(cause, measured, simulated, profile))
+        shading = _shading_fit(profile, _per_colour(profile, _delta(cause, measured, simulated, profile)))
         return {"shading": shading.tolist(), "corner_gain": (1 + shading.sum(1)).tolist()}
     if cause == "noise_model":
         shot, read = _noise_scales(measured, simulated, profile)

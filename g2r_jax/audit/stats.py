@@ -158,14 +158,22 @@ def noise_level_function(planes, clip: np.ndarray, band: np.ndarray):
     return variance, level
 
 
-def green_ratio(planes, green_positions, clip) -> np.ndarray:
+def green_ratio(planes, green_positions, clip, floor=None) -> np.ndarray:
     """(1,) log(G2 / G1): the median over 4x4 blocks with both greens well exposed.
 
     The two green sites of a Bayer tile sample the same colour one pixel apart, so their ratio
     is 1 for any scene up to edge noise that the median removes; green imbalance shifts it.
+    `planes` must carry one dark floor common to both greens (`floor`: the per-position floors
+    that were subtracted; the greens get their mean back and lose it again): subtracting each
+    green's own floor estimate, a noisy 0.5th percentile, adds a per-file Gr/Gb offset that in
+    dark, high-ISO files (10-bit night profiles) is several DN and dominates the ratio.
+    A radial fall-off acts on both greens alike, so shading does not move the ratio.
     """
     g1, g2 = green_positions
-    blocks = block_means(planes[[g1, g2]], 4)
+    greens = planes[[g1, g2]]
+    if floor is not None:
+        greens = greens + (np.asarray(floor)[[g1, g2]] - np.mean(np.asarray(floor)[[g1, g2]]))[:, None, None]
+    blocks = block_means(greens, 4)
     top = 0.9 * np.nanmin(np.where(np.isfinite(clip[[g1, g2]]), clip[[g1, g2]], 1.0))
     ok = (blocks.min(0) > 0.03) & (blocks.max(0) < top)
     if ok.sum() < 20:
@@ -180,9 +188,13 @@ def shading_profile(planes, clip) -> np.ndarray:
     Radial gradient symmetry (Zheng, Yu, Kang, Lin & Kambhamettu, "Single-image vignetting
     correction using radial gradient symmetry", CVPR 2008): in a scene without vignetting the
     radial derivative of log brightness is symmetric about zero; vignetting g(r) adds
-    d log g / dr everywhere. Inside flat regions (`flat_mask`, signal well exposed) the mean
-    radial derivative per ring therefore measures d log g / dr = 2 c1 r + 4 c2 r^3, fitted by
-    least squares; any leftover scene bias is the same in measured and simulated files.
+    d log g / dr everywhere. The *median* radial derivative per ring (pixels whose four
+    neighbours are exposed and unclipped) therefore measures d log g / dr = 2 c1 r + 4 c2 r^3,
+    fitted by weighted least squares; any leftover scene bias is the same in measured and
+    simulated files. The median, not a mean over a "flat" mask: at low signal (night files,
+    10 bits, high ISO) a noise-blind flat test keeps only pixel pairs whose noise happened to
+    cancel, which truncates the gradients towards zero by an amount that depends on the ISO,
+    and leaves too few pixels in some rings; the median ignores scene edges and noise alike.
     """
     _, h, w = planes.shape
     half_diagonal = np.hypot(h - 1, w - 1) / 2
@@ -193,24 +205,25 @@ def shading_profile(planes, clip) -> np.ndarray:
     inner = (slice(1, -1), slice(1, -1))
     r_in = r[inner]
     rings = np.minimum((r_in**2 * RINGS).astype(int), RINGS - 1)
-    flat_all = flat_mask(planes, relative=0.1)
+    uy, ux = np.broadcast_to(unit_y, (h, w))[inner], np.broadcast_to(unit_x, (h, w))[inner]
     out = np.full(4, np.nan)
     for p in range(4):
         top = 0.9 * (clip[p] if np.isfinite(clip[p]) else 1.0)
-        log_p = np.log(np.maximum(planes[p], 1e-4))
+        plane = planes[p]
+        around = (plane[2:, 1:-1], plane[:-2, 1:-1], plane[1:-1, 2:], plane[1:-1, :-2], plane[inner])
+        ok = (np.minimum.reduce(around) > 0.02) & (np.maximum.reduce(around) < top)
+        log_p = np.log(np.maximum(plane, 1e-4))
         gy = (log_p[2:, 1:-1] - log_p[:-2, 1:-1]) / 2 * half_diagonal   # per unit of r
         gx = (log_p[1:-1, 2:] - log_p[1:-1, :-2]) / 2 * half_diagonal
-        radial = gy * unit_y[inner] + gx * unit_x[inner]
-        level = planes[p][inner]
-        flat = flat_all[p][inner] & (level > 0.05) & (level < top)
+        radial = gy * uy + gx * ux
         rows, targets, weights = [], [], []
         for k in range(RINGS):
-            sel = flat & (rings == k)
-            if sel.sum() < 50:
+            sel = ok & (rings == k)
+            if sel.sum() < 20:
                 continue
             rk = r_in[sel]
             rows.append([2 * rk.mean(), 4 * np.mean(rk**3)])
-            targets.append(radial[sel].mean())
+            targets.append(np.median(radial[sel]))
             weights.append(np.sqrt(sel.sum()))
         if len(rows) < 3:
             continue
@@ -299,7 +312,7 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True) -> dic
     iso = info.iso if info.iso else float(np.sqrt(np.prod(np.asarray(profile.noise.iso_range, np.float64))))
     return {
         "dark_floor": floor, "clip": clip, "band": band, "nlf_var": nlf_var, "nlf_level": nlf_level,
-        "iso": float(iso), "green": green_ratio(planes, greens, clip),
+        "iso": float(iso), "green": green_ratio(planes, greens, clip, floor),
         "shading": shading_profile(planes, clip),
         "brightness": brightness(planes, r2, clip), "noise_corr": noise_correlation(planes),
         "outliers": outliers(planes, clip) if with_outliers else None, "neutral": None if neutral is None else np.asarray(neutral, np.float64),
