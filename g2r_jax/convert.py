@@ -1,11 +1,13 @@
 """Batch conversion of CG image files into DNGs of the profiled camera.
 
 The driver around `unprocess`: decodes files on worker threads ahead of the compute, runs one
-jitted `vmap(unprocess)` per batch of same-sized images (the last batch padded, so shapes and
-compiled code are reused), and writes DNGs atomically on worker threads. Memory stays bounded
-by the number of images in flight whatever the folder size. A bad file is reported and the
-batch goes on. Every image's PRNG key derives from (seed, file name), so the same seed gives
-the same bytes whatever the batch order or batch size.
+jitted `unprocess_batch` per batch of same-sized images (the last batch padded, so shapes and
+compiled code are reused; a batch is dispatched asynchronously and its results handed to the
+writers only once the next batch is queued), and writes DNGs atomically on worker threads.
+Memory stays bounded by the images in flight (loading window, two batches, writing window)
+whatever the folder size. A bad file is reported and the batch goes on. Every image's PRNG key
+derives from (seed, file name), so the same seed gives the same bytes whatever the batch order
+or batch size.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import numpy as np
 
 from .io.atomic import atomic_write_bytes
 from .io.dng_info import DngError, DngInfo
-from .unprocess import unprocess
+from .unprocess import unprocess_batch
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr")
 
@@ -131,19 +133,22 @@ _COMPILED = {}
 
 
 def _batched_unprocess(options: ConvertOptions, transfer: str, with_neutral: bool):
-    """One jitted vmap(unprocess) per option set (jax caches the compiled code per shape)."""
+    """One jitted `unprocess_batch` per option set (jax caches the compiled code per shape).
+
+    `unprocess_batch` gives every image the same bytes whatever batch it falls in, so outputs do
+    not depend on the batch size, on padding, or on which engine or chunk converted a file."""
     signature = (options.noise, options.effects, options.recipe, transfer, with_neutral, options.iso is not None,
                  options.lens_shading)
 
     if signature not in _COMPILED:
-        def one(key, image, profile, neutral, iso, lens_gain):
-            return unprocess(key, image, profile, transfer=transfer, noise=options.noise,
-                             effects=options.effects, recipe=options.recipe,
-                             neutral=neutral if with_neutral else None,
-                             iso=iso if options.iso is not None else None,
-                             lens_gain=lens_gain if options.lens_shading else None)
+        def batch(keys, images, profile, neutrals, iso, lens_gain):
+            return unprocess_batch(keys, images, profile, transfer=transfer, noise=options.noise,
+                                   effects=options.effects, recipe=options.recipe,
+                                   neutral=neutrals if with_neutral else None,
+                                   iso=iso if options.iso is not None else None,
+                                   lens_gain=lens_gain if options.lens_shading else None)
 
-        _COMPILED[signature] = jax.jit(jax.vmap(one, in_axes=(0, 0, None, 0, None, None)))
+        _COMPILED[signature] = jax.jit(batch)
     return _COMPILED[signature]
 
 
@@ -156,12 +161,13 @@ def _manifest_record(path, output, metadata, seed):
 
 
 def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOptions | None = None,
-                  on_error=None) -> ConvertResult:
+                  on_error=None, write_manifest: bool = True) -> ConvertResult:
     """Convert image files into DNGs `out_dir/<stem>.dng` and write `out_dir/manifest.jsonl`.
 
     **Arguments:** `inputs`: image paths (already expanded, in the order rows of `neutrals`
     apply); `profile`: a SensorProfile; `out_dir`; `neutrals`: optional (N, 3) camera neutrals,
-    row i for input i; `options`: `ConvertOptions`; `on_error`: called with each error line.
+    row i for input i; `options`: `ConvertOptions`; `on_error`: called with each error line;
+    `write_manifest`: False leaves the manifest to the caller (a chunk of a distributed run).
 
     **Returns:** `ConvertResult` (records in input order, error lines).
     """
@@ -215,7 +221,16 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
         loading = {i: submit_load(i) for i in range(min(window, len(inputs)))}
         writing = []
         pending = []   # (index, image) waiting for a batch partner of the same shape/transfer
+        in_flight = []  # batches dispatched to the device, handed to the writers one batch later
         next_to_load = len(loading)
+
+        def hand_over(batch, mosaics, metadata):
+            mosaics = np.asarray(mosaics)   # waits for this batch only: the next one is already queued
+            metadata = {k: np.asarray(v) for k, v in metadata.items()}
+            for j, (index, _) in enumerate(batch):
+                writing.append(pool.submit(write, index, inputs[index], mosaics[j], {k: v[j] for k, v in metadata.items()}))
+            while len(writing) > window:    # bounded memory: writers keep up or the compute waits
+                _collect(writing.pop(0), inputs, records, report, progress)
 
         def flush(batch):
             if not batch:
@@ -233,10 +248,9 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
                          else jnp.ones((), jnp.float32))
             mosaics, metadata = _batched_unprocess(options, transfer, with_neutral)(keys, images, profile, neutral_rows,
                                                                                      iso, lens_gain)
-            mosaics = np.asarray(mosaics)
-            metadata = {k: np.asarray(v) for k, v in metadata.items()}
-            for j, (index, _) in enumerate(batch):
-                writing.append(pool.submit(write, index, inputs[index], mosaics[j], {k: v[j] for k, v in metadata.items()}))
+            in_flight.append((batch, mosaics, metadata))   # asynchronous: decoding goes on meanwhile
+            if len(in_flight) > 1:
+                hand_over(*in_flight.pop(0))
 
         for index in range(len(inputs)):
             path = inputs[index]
@@ -268,14 +282,22 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
                 writing.remove(done)
                 _collect(done, inputs, records, report, progress)
         flush(pending)
+        while in_flight:
+            hand_over(*in_flight.pop(0))
         for done in writing:
             _collect(done, inputs, records, report, progress)
     if progress:
         progress.close()
     ordered = [records[i] for i in sorted(records)]
-    manifest = "".join(json.dumps(r) + "\n" for r in ordered)
-    atomic_write_bytes(out_dir / "manifest.jsonl", manifest.encode())
+    if write_manifest:
+        write_manifest_file(out_dir, ordered)
     return ConvertResult(records=ordered, errors=errors)
+
+
+def write_manifest_file(out_dir, records) -> None:
+    """`out_dir/manifest.jsonl`: one JSON record per converted file, in input order."""
+    manifest = "".join(json.dumps(r) + "\n" for r in records)
+    atomic_write_bytes(Path(out_dir) / "manifest.jsonl", manifest.encode())
 
 
 def _collect(future, inputs, records, report, progress):

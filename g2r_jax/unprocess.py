@@ -29,7 +29,9 @@ _STANDARD_LIGHT_A_PUBLISHED = 2500.0  # the published code's value (the DNG SDK 
 def decode(image, transfer: str):
     """Display values -> linear sRGB; 8-bit input goes through an exact 256-entry table."""
     if image.dtype == jnp.uint8:
-        return jnp.asarray(_colour.srgb_decode_lut(transfer))[image]
+        # One gather per channel: XLA vectorises these, not a gather on the (H, W, 3) array.
+        table = jnp.asarray(_colour.srgb_decode_lut(transfer))
+        return jnp.stack([table[image[..., c]] for c in range(image.shape[-1])], axis=-1)
     return _colour.decode_to_linear(image.astype(jnp.float32), transfer)
 
 
@@ -59,35 +61,112 @@ def matrix_srgb_to_white_balanced_camera_published(cct, colour_model):
 
 
 def cfa_planes(linear):
-    """(H, W, 3) -> (4, H/2, W/2, 3): the pixels of each 2x2 tile position.
-
-    Plane p = 2 * (row % 2) + (col % 2) as a reshape and transpose, which XLA fuses as index
-    arithmetic (a stack of strided slices is materialised instead)."""
+    """(H, W, 3) -> (4, H/2, W/2, 3): the pixels of each 2x2 tile position p = 2 * (row % 2) + (col % 2)."""
     height, width = linear.shape[0], linear.shape[1]
     tiles = linear.reshape(height // 2, 2, width // 2, 2, linear.shape[2])
     return tiles.transpose(1, 3, 0, 2, 4).reshape(4, height // 2, width // 2, linear.shape[2])
 
 
 def _dot_channels(rgb, weights):
-    """sum_c rgb[..., c] * weights[..., c], written out: an einsum over 3 channels becomes a
-    dot that XLA runs on a materialised copy of its operands, this fuses with its neighbours."""
-    return rgb[..., 0] * weights[..., 0] + rgb[..., 1] * weights[..., 1] + rgb[..., 2] * weights[..., 2]
+    """sum_c rgb[..., c] * weights[c], written out: an einsum over 3 channels becomes a dot
+    that XLA runs on a materialised copy of its operands, this fuses with its neighbours."""
+    return rgb[..., 0] * weights[0] + rgb[..., 1] * weights[1] + rgb[..., 2] * weights[2]
 
 
-def mosaic_camera_rgb(planes_rgb, srgb_to_wb_camera, gains, cfa_pattern, highlight_safe: bool):
-    """Mosaicked un-white-balanced camera RGB, computing only the channel each pixel keeps.
+def mosaic_camera_rgb(linear, srgb_to_wb_camera, gains, cfa_pattern, highlight_safe: bool):
+    """Mosaicked un-white-balanced camera RGB (H, W) from linear sRGB (H, W, 3), computing only
+    the channel each pixel keeps (the matrix row and gain of its tile position).
 
     Un-white-balance multiplies by the neutral; with `highlight_safe` the gain is eased to 1
     for near-white pixels (Brooks et al. 2019, safe_invert_gains) so highlights stay neutral.
     """
-    rows = srgb_to_wb_camera[cfa_pattern][:, None, None, :]      # (4, 1, 1, 3) one row per tile position
-    kept = _dot_channels(planes_rgb, rows)
-    gain = gains[cfa_pattern][:, None, None]
+    shape = linear.shape[:2]
+    rows = srgb_to_wb_camera[cfa_pattern]                        # (4, 3) one row per tile position
+    kept = _dot_channels(linear, [_sensor.per_position(rows[:, c], shape) for c in range(3)])
+    gain = _sensor.per_position(gains[cfa_pattern], shape)
     if not highlight_safe:
         return kept * gain
-    gray = _dot_channels(planes_rgb, jnp.mean(srgb_to_wb_camera, axis=0))
+    gray = _dot_channels(linear, jnp.mean(srgb_to_wb_camera, axis=0))
     mask = (jnp.maximum(gray - HIGHLIGHT_INFLECTION, 0.0) / (1.0 - HIGHLIGHT_INFLECTION)) ** 2
     return kept * jnp.maximum(mask + (1.0 - mask) * gain, gain)
+
+
+METADATA_KEYS = ("neutral", "xy", "cct", "iso", "exposure_gain", "noise_shot", "noise_read", "converged")
+
+
+def sample_conditions(key, profile, *, neutral=None, iso=None, exposure_gain=None, recipe: str = "dng"):
+    """Steps 2-4 of `unprocess` and its other per-image draws, without touching pixels.
+
+    **Returns:** a dict of small arrays: the metadata of `unprocess` (`METADATA_KEYS`) plus
+    `srgb_to_wb_camera` (3, 3), `gains` (3,) and the keys of the noise and readout draws.
+    """
+    k_illuminant, k_exposure, k_iso, k_noise, k_readout = jax.random.split(key, 5)
+    dtype = jnp.float32
+
+    # 2. Sample an illuminant from the camera's distribution: a camera neutral (r/g, 1, b/g).
+    if neutral is None:
+        neutral = _illuminants.chromaticity_to_neutral(
+            _illuminants.sample_chromaticity(k_illuminant, profile.illuminants))
+    neutral = jnp.asarray(neutral, dtype)
+    neutral = neutral / neutral[1]
+
+    # 3. Its white point, by the DNG neutral -> xy fixed point, and its CCT.
+    xy, converged = _dng.camera_neutral_to_xy(neutral, profile.colour, throw=False)
+    cct = _colour.xy_to_CCT(xy)
+
+    # 4. Colour space transform: linear sRGB -> white-balanced camera RGB for that white.
+    if recipe == "published":
+        srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera_published(cct, profile.colour)
+    else:
+        srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera(xy, neutral, profile.colour)
+
+    if exposure_gain is None:
+        exposure_gain = _sensor.sample_exposure_gain(k_exposure, profile.exposure)
+    iso = _sensor.sample_iso(k_iso, profile.noise) if iso is None else jnp.asarray(iso, dtype)
+    shot, read = _sensor.noise_parameters(iso, profile.noise)
+    return {"neutral": neutral, "xy": xy, "cct": cct, "iso": iso,
+            "exposure_gain": jnp.asarray(exposure_gain, dtype), "noise_shot": shot, "noise_read": read,
+            "converged": converged, "srgb_to_wb_camera": srgb_to_wb_camera,
+            "gains": neutral / jnp.max(neutral), "noise_key": k_noise, "readout_key": k_readout}
+
+
+def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: bool = True,
+                  effects: bool = True, highlight_safe: bool = True, recipe: str = "dng",
+                  quantize: bool = True, lens_gain=None):
+    """Steps 1 and 5-7 of `unprocess`: the pixels, for `conditions` from `sample_conditions`.
+
+    Every stage is element-wise in the (H, W) mosaic layout, so under jit XLA fuses them into one
+    loop from the input codes to the uint16 output, with no float64 and no intermediate arrays.
+    """
+    # 1. Decode display values to linear sRGB.
+    linear = decode(image, "gamma2.2" if recipe == "published" else transfer)
+
+    # 5. Un-white-balance and mosaic in one step, scaled so that white reaches 1 in the
+    #    strongest channel, then a global exposure gain.
+    mosaic = mosaic_camera_rgb(linear, conditions["srgb_to_wb_camera"], conditions["gains"],
+                               profile.cfa_pattern, highlight_safe)
+    mosaic = mosaic * conditions["exposure_gain"]
+
+    # 6. Optics and sensor: shading and channel gains, noise at the drawn ISO, readout effects.
+    if effects:
+        mosaic = _sensor.apply_optical_effects(mosaic, profile.effects)
+    if lens_gain is not None:
+        mosaic = mosaic / _sensor.from_planes(lens_gain)
+    if noise:
+        mosaic = _sensor.add_noise(conditions["noise_key"], mosaic, conditions["noise_shot"], conditions["noise_read"])
+    effect_parameters = profile.effects if effects else _sensor.no_effects()
+    if effects:
+        mosaic = _sensor.apply_readout_effects(conditions["readout_key"], mosaic, profile.effects)
+
+    # 7. Black and white levels, quantisation.
+    return _sensor.to_digital_numbers(mosaic, profile.black_level, profile.white_level,
+                                      effect_parameters, quantize=quantize)
+
+
+def _check_image(image):
+    height, width = image.shape[-3], image.shape[-2]
+    if height % 2 or width % 2 or image.ndim < 3 or image.shape[-1] != 3:
+        raise ValueError(f"image must be (H, W, 3) with even H and W, got {image.shape}")
 
 
 def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=None,
@@ -115,60 +194,39 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     metadata a dict of arrays: neutral (3,), xy (2,), cct, iso, exposure_gain, noise_shot (4,),
     noise_read (4,) (normalised units per tile position), converged (white-point solve).
     """
-    height, width = image.shape[0], image.shape[1]
-    if height % 2 or width % 2 or image.ndim != 3 or image.shape[2] != 3:
+    if image.ndim != 3:
         raise ValueError(f"image must be (H, W, 3) with even H and W, got {image.shape}")
-    k_illuminant, k_exposure, k_iso, k_noise, k_readout = jax.random.split(key, 5)
-    dtype = jnp.float32
+    _check_image(image)
+    # Steps 2-4: illuminant, white point, colour transform (and the other per-image draws).
+    conditions = sample_conditions(key, profile, neutral=neutral, iso=iso, exposure_gain=exposure_gain,
+                                   recipe=recipe)
+    # Steps 1, 5-7: decode, un-white-balance and mosaic, sensor, levels.
+    mosaic = render_mosaic(image, conditions, profile, transfer=transfer, noise=noise, effects=effects,
+                           highlight_safe=highlight_safe, recipe=recipe, quantize=quantize, lens_gain=lens_gain)
+    return mosaic, {k: conditions[k] for k in METADATA_KEYS}
 
-    # 1. Decode display values to linear sRGB.
-    linear = decode(image, "gamma2.2" if recipe == "published" else transfer)
 
-    # 2. Sample an illuminant from the camera's distribution: a camera neutral (r/g, 1, b/g).
-    if neutral is None:
-        neutral = _illuminants.chromaticity_to_neutral(
-            _illuminants.sample_chromaticity(k_illuminant, profile.illuminants))
-    neutral = jnp.asarray(neutral, dtype)
-    neutral = neutral / neutral[1]
+def unprocess_batch(keys, images, profile, *, neutral=None, iso=None, exposure_gain=None,
+                    recipe: str = "dng", **render_options):
+    """`unprocess` over a batch (B, H, W, 3) with keys (B, ...), same results image by image
+    whatever the batch size or an image's place in it.
 
-    # 3. Its white point, by the DNG neutral -> xy fixed point, and its CCT.
-    xy, converged = _dng.camera_neutral_to_xy(neutral, profile.colour, throw=False)
-    cct = _colour.xy_to_CCT(xy)
+    The per-image conditions (illuminant, white point, 3x3 matrices) run as a loop over images
+    (`lax.map`), each step compiled for one image: small matrix products compiled for a batch
+    round differently with the batch size, which would make bytes depend on how files were
+    batched or sharded. The pixels, element-wise, are vmapped. `neutral` is None or (B, 3);
+    `iso` and `exposure_gain` are None or shared scalars; other options as `unprocess`.
+    """
+    _check_image(images)
 
-    # 4. Colour space transform: linear sRGB -> white-balanced camera RGB for that white.
-    if recipe == "published":
-        srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera_published(cct, profile.colour)
-    else:
-        srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera(xy, neutral, profile.colour)
+    def conditions_of(args):
+        key, row = args
+        return sample_conditions(key, profile, neutral=row, iso=iso, exposure_gain=exposure_gain, recipe=recipe)
 
-    # 5. Un-white-balance and mosaic in one step, scaled so that white reaches 1 in the
-    #    strongest channel, then a global exposure gain.
-    gains = neutral / jnp.max(neutral)
-    planes = mosaic_camera_rgb(cfa_planes(linear), srgb_to_wb_camera, gains, profile.cfa_pattern, highlight_safe)
-    if exposure_gain is None:
-        exposure_gain = _sensor.sample_exposure_gain(k_exposure, profile.exposure)
-    exposure_gain = jnp.asarray(exposure_gain, dtype)
-    planes = planes * exposure_gain
-
-    # 6. Optics and sensor: shading and channel gains, noise at the drawn ISO, readout effects.
-    if effects:
-        planes = _sensor.apply_optical_effects(planes, profile.effects)
-    if lens_gain is not None:
-        planes = planes / lens_gain
-    iso = _sensor.sample_iso(k_iso, profile.noise) if iso is None else jnp.asarray(iso, dtype)
-    shot, read = _sensor.noise_parameters(iso, profile.noise)
-    if noise:
-        planes = _sensor.add_noise(k_noise, planes, shot, read)
-    effect_parameters = profile.effects if effects else _sensor.no_effects()
-    if effects:
-        planes = _sensor.apply_readout_effects(k_readout, planes, profile.effects)
-
-    # 7. Black and white levels, quantisation.
-    mosaic = _sensor.to_digital_numbers(planes, profile.black_level, profile.white_level,
-                                        effect_parameters, quantize=quantize)
-    metadata = {"neutral": neutral, "xy": xy, "cct": cct, "iso": iso, "exposure_gain": exposure_gain,
-                "noise_shot": shot, "noise_read": read, "converged": converged}
-    return mosaic, metadata
+    conditions = jax.lax.map(conditions_of, (keys, neutral))
+    mosaics = jax.vmap(lambda image, c: render_mosaic(image, c, profile, recipe=recipe, **render_options))(
+        images, conditions)
+    return mosaics, {k: conditions[k] for k in METADATA_KEYS}
 
 
 def image_key(seed: int, index: int):

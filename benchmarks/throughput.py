@@ -1,0 +1,353 @@
+"""Throughput of g2r_jax against a numpy statement of the published steps, in one run.
+
+    python benchmarks/throughput.py            # 12-MP frames (3024 x 4032), a few minutes on 2 cores
+    python benchmarks/throughput.py --quick    # 756 x 1008 frames, well under a minute
+    python benchmarks/throughput.py --json results.json
+
+Sections (each in a fresh subprocess, so that its peak memory is its own):
+- bandwidth: the machine's memory bandwidth, measured here (large numpy and JAX copies).
+- numpy:     the published per-image steps in numpy (`published_numpy.unprocess_published`).
+- jax:       `g2r_jax.unprocess` under jit + vmap for a batch, noise off and on, and
+             `unprocess_batch` (what g2r-convert runs); frames/s, speed-up over numpy, peak
+             memory, and the share of the measured bandwidth reached by the minimal traffic
+             (uint8 RGB in, uint16 mosaic out: 5 bytes a pixel).
+- sampling:  illuminant + CST sampling for 10^5 illuminants in JAX (vmap of sample, neutral ->
+             xy, matrix) against a per-sample Python loop over colour_hdri's functions (timed on
+             a subset and extrapolated).
+- convert:   `g2r-convert` end to end on a folder of PNGs (decode, convert, encode) against
+             `published_numpy.py` writing the same DNGs, both as fresh processes.
+Timings are the best of a few repetitions (the median for the end-to-end runs is the single run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+FULL = (3024, 4032)
+QUICK = (756, 1008)
+BYTES_PER_PIXEL = 3 + 2            # uint8 RGB read, uint16 mosaic written
+
+
+def peak_rss_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def best_of(function, repeats: int):
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def test_image(height: int, width: int, seed: int = 0) -> np.ndarray:
+    """A smooth synthetic scene (gradients, discs, a few saturated patches), uint8 RGB."""
+    rng = np.random.default_rng(seed)
+    y, x = np.ogrid[0:height, 0:width]
+    y, x = y.astype(np.float32), x.astype(np.float32)
+    image = np.empty((height, width, 3), np.float32)
+    image[..., 0] = x / width
+    image[..., 1] = y / height
+    image[..., 2] = 0.5 + 0.5 * np.sin(x / 97.0 + y / 61.0 + seed)
+    for _ in range(12):
+        cy, cx, radius = rng.uniform(0, height), rng.uniform(0, width), rng.uniform(0.03, 0.15) * height
+        image[(y - cy) ** 2 + (x - cx) ** 2 < radius**2] = rng.uniform(0, 1, 3)
+    image[: height // 16, : width // 16] = 1.0
+    image += rng.standard_normal(image.shape, np.float32) * np.float32(0.01)
+    return np.clip(image * 255 + 0.5, 0, 255).astype(np.uint8)
+
+
+# ----------------------------------------------------------------------------- sections
+
+def section_bandwidth(args) -> dict:
+    """Memory bandwidth: the best of large copies (read + write counted), numpy and JAX."""
+    import jax
+    import jax.numpy as jnp
+
+    size = (256 if args.quick else 1024) << 20
+    source = np.ones(size, np.uint8)
+    target = np.empty_like(source)
+    np.copyto(target, source)
+    numpy_copy = 2 * size / best_of(lambda: np.copyto(target, source), 5) / 1e9
+    device = jax.devices()[0]
+    words = jnp.ones(size // 4, jnp.uint32)
+    add_one = jax.jit(lambda a: a + jnp.uint32(1))
+    add_one(words).block_until_ready()
+    jax_copy = 2 * size / best_of(lambda: add_one(words).block_until_ready(), 5) / 1e9
+    return {"numpy_copy_GBps": numpy_copy, "jax_copy_GBps": jax_copy,
+            "bandwidth_GBps": max(numpy_copy, jax_copy), "device": str(device.device_kind)}
+
+
+def section_numpy(args) -> dict:
+    """The published steps in numpy, one frame at a time; peak Python-heap memory by tracemalloc."""
+    import tracemalloc
+
+    sys.path.insert(0, str(HERE))
+    from published_numpy import published_matrices, unprocess_published
+
+    from g2r_jax.profile import load_profile
+
+    height, width = args.size
+    profile = load_profile("Canon600D")
+    image = test_image(height, width)
+    neutral = np.array([0.55, 1.0, 0.72])
+    srgb_to_xyz, xyz_to_camera = published_matrices(profile, neutral)
+    cfa, black, white = list(np.asarray(profile.cfa_pattern)), np.asarray(profile.black_level), float(profile.white_level)
+    run = lambda: unprocess_published(image, srgb_to_xyz, xyz_to_camera, neutral, cfa, black, white)
+    run()
+    tracemalloc.start()
+    seconds = best_of(run, args.numpy_repeats)
+    _, traced_peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return {"seconds_per_frame": seconds, "frames_per_s": 1.0 / seconds,
+            "peak_traced_MiB": traced_peak / 2**20, "peak_rss_MiB": peak_rss_mib()}
+
+
+def section_jax(args) -> dict:
+    import jax
+    import jax.numpy as jnp
+
+    from g2r_jax.profile import load_profile
+    from g2r_jax.unprocess import unprocess, unprocess_batch
+
+    height, width = args.size
+    batch = args.batch
+    profile = load_profile(args.profile)
+    images = jnp.asarray(np.stack([test_image(height, width, seed) for seed in range(batch)]))
+    keys = jax.random.split(jax.random.PRNGKey(0), batch)
+    results = {"batch": batch, "profile": args.profile, "device": str(jax.devices()[0].device_kind),
+               "platform": jax.devices()[0].platform}
+    variants = {
+        "vmap_noise_off": jax.jit(jax.vmap(lambda k, im: unprocess(k, im, profile, noise=False)[0])),
+        "vmap_noise_on": jax.jit(jax.vmap(lambda k, im: unprocess(k, im, profile, noise=True)[0])),
+        "batch_noise_off": jax.jit(lambda k, im: unprocess_batch(k, im, profile, noise=False)[0]),
+        "batch_noise_on": jax.jit(lambda k, im: unprocess_batch(k, im, profile, noise=True)[0]),
+    }
+    for name, function in variants.items():
+        start = time.perf_counter()
+        function(keys, images).block_until_ready()
+        compile_seconds = time.perf_counter() - start
+        seconds = best_of(lambda: function(keys, images).block_until_ready(), args.repeats)
+        results[name] = {"seconds_per_batch": seconds, "frames_per_s": batch / seconds,
+                         "first_call_seconds": compile_seconds}
+    stats = jax.devices()[0].memory_stats() or {}
+    results["peak_rss_MiB"] = peak_rss_mib()
+    if "peak_bytes_in_use" in stats:
+        results["device_peak_MiB"] = stats["peak_bytes_in_use"] / 2**20
+    return results
+
+
+def section_sampling(args) -> dict:
+    """10^5 illuminants + CSTs in JAX against a per-sample loop over colour_hdri."""
+    import colour
+    import jax
+    from colour_hdri.models import dng as reference
+
+    from g2r_jax import dng, illuminants
+    from g2r_jax.profile import load_profile
+
+    profile = load_profile(args.profile)
+    model = profile.colour
+    count = args.samples
+
+    def one(key):
+        neutral = illuminants.chromaticity_to_neutral(illuminants.sample_chromaticity(key, profile.illuminants))
+        xy, _ = dng.camera_neutral_to_xy(neutral, model, throw=False)
+        return neutral, xy, dng.matrix_XYZ_D65_to_camera(xy, model)
+
+    sample = jax.jit(jax.vmap(one))
+    keys = jax.random.split(jax.random.PRNGKey(1), count)
+    start = time.perf_counter()
+    jax.block_until_ready(sample(keys))
+    first = time.perf_counter() - start
+    jax_seconds = best_of(lambda: jax.block_until_ready(sample(keys)), 3)
+
+    # The loop: numpy draws with rejection to the hull, colour_hdri's neutral -> xy and matrices.
+    cct1, cct2 = (float(v) for v in np.asarray(model.calibration_cct))
+    cm1, cm2 = np.asarray(model.color_matrix, np.float64)
+    cc1, cc2 = np.asarray(model.camera_calibration, np.float64)
+    fm1, fm2 = np.asarray(model.forward_matrix, np.float64)    # identity = no ForwardMatrix, for both
+    balance = np.asarray(model.analog_balance, np.float64)
+    means = np.asarray(profile.illuminants.means, np.float64)
+    cholesky = np.asarray(profile.illuminants.cholesky, np.float64)
+    weights = np.asarray(profile.illuminants.weights, np.float64)
+    hull = np.asarray(profile.illuminants.hull, np.float64)
+    rng = np.random.default_rng(0)
+    whites = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]
+    bradford = colour.adaptation.matrix_chromatic_adaptation_VonKries(
+        colour.xy_to_XYZ(whites["D50"]), colour.xy_to_XYZ(whites["D65"]), transform="Bradford")
+
+    def loop_one():
+        while True:
+            k = rng.choice(len(weights), p=weights)
+            point = means[k] + cholesky[k] @ rng.standard_normal(2)
+            if not profile.illuminants.use_hull or np.all(point @ hull[:, :2].T + hull[:, 2] <= 1e-9):
+                break
+        neutral = np.array([point[0], 1.0, point[1]])
+        xy = reference.camera_neutral_to_xy(neutral, cct1, cct2, cm1, cm2, cc1, cc2, balance)
+        camera_to_xyz = reference.matrix_camera_space_to_XYZ(xy, cct1, cct2, cm1, cm2, cc1, cc2, balance, fm1, fm2)
+        return np.linalg.inv(bradford @ camera_to_xyz)
+
+    subset = args.loop_samples
+    start = time.perf_counter()
+    for _ in range(subset):
+        loop_one()
+    loop_seconds_subset = time.perf_counter() - start
+    loop_seconds = loop_seconds_subset / subset * count
+    return {"samples": count, "jax_seconds": jax_seconds, "jax_first_call_seconds": first,
+            "loop_subset": subset, "loop_subset_seconds": loop_seconds_subset,
+            "loop_seconds_extrapolated": loop_seconds, "speedup": loop_seconds / jax_seconds}
+
+
+def section_convert(args) -> dict:
+    """g2r-convert against published_numpy.py on the same folder of PNGs, as fresh processes."""
+    from PIL import Image
+
+    height, width = args.size
+    work = Path(args.workdir)
+    folder = work / "pngs"
+    folder.mkdir(parents=True, exist_ok=True)
+    existing = sorted(folder.glob("*.png"))
+    if len(existing) != args.frames or Image.open(existing[0]).size != (width, height):
+        for path in existing:
+            path.unlink()
+        for index in range(args.frames):
+            Image.fromarray(test_image(height, width, 100 + index)).save(folder / f"frame_{index:03d}.png",
+                                                                         compress_level=1)
+    bin_dir = Path(sys.executable).parent
+    g2r = [str(bin_dir / "g2r-convert"), str(folder), "--profile", args.profile, "-o", str(work / "g2r"),
+           "--no-progress", "--batch-size", str(args.convert_batch)]
+    numpy_script = [sys.executable, str(HERE / "published_numpy.py"), str(folder), str(work / "numpy"),
+                    "--profile", args.profile]
+    timings = {}
+    for name, command in (("g2r_convert", g2r), ("published_numpy", numpy_script)):
+        start = time.perf_counter()
+        completed = subprocess.run(command, capture_output=True, text=True)
+        seconds = time.perf_counter() - start
+        if completed.returncode != 0:
+            raise RuntimeError(f"{name} failed:\n{completed.stdout}\n{completed.stderr}")
+        timings[name] = {"seconds": seconds, "frames_per_s": args.frames / seconds,
+                         "peak_rss_MiB": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0}
+    timings["frames"] = args.frames
+    timings["speedup"] = timings["published_numpy"]["seconds"] / timings["g2r_convert"]["seconds"]
+    timings["command"] = " ".join(g2r)
+    return timings
+
+
+SECTIONS = {"bandwidth": section_bandwidth, "numpy": section_numpy, "jax": section_jax,
+            "sampling": section_sampling, "convert": section_convert}
+
+
+# ----------------------------------------------------------------------------- driver
+
+def parse(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="756 x 1008 frames and fewer repetitions")
+    parser.add_argument("--sections", default=",".join(SECTIONS), help="comma-separated subset of " + ",".join(SECTIONS))
+    parser.add_argument("--profile", default="Canon600D")
+    parser.add_argument("--batch", type=int, help="frames per jit+vmap batch (default 4, quick 8)")
+    parser.add_argument("--frames", type=int, help="PNGs in the end-to-end folder (default 12, quick 8)")
+    parser.add_argument("--samples", type=int, default=100_000, help="illuminants in the sampling benchmark")
+    parser.add_argument("--loop-samples", type=int, default=200, help="colour_hdri loop iterations timed")
+    parser.add_argument("--workdir", default=None, help="folder for the end-to-end PNGs and DNGs")
+    parser.add_argument("--json", type=Path, help="also write the results as JSON")
+    parser.add_argument("--section", help=argparse.SUPPRESS)       # internal: run one section, print JSON
+    args = parser.parse_args(argv)
+    args.size = QUICK if args.quick else FULL
+    args.batch = args.batch or (8 if args.quick else 4)
+    args.frames = args.frames or (8 if args.quick else 12)
+    args.repeats = 3
+    args.numpy_repeats = 3 if args.quick else 2
+    args.convert_batch = 4
+    args.workdir = args.workdir or str(Path(os.environ.get("TMPDIR", "/tmp")) / f"g2r_bench_{args.size[0]}")
+    return args
+
+
+def run_section(name, argv) -> dict:
+    """One section in a fresh interpreter (own peak memory, own JAX state)."""
+    completed = subprocess.run([sys.executable, __file__, "--section", name] + argv, capture_output=True, text=True)
+    if completed.returncode != 0:
+        raise RuntimeError(f"section {name} failed:\n{completed.stderr[-4000:]}")
+    return json.loads(completed.stdout.strip().splitlines()[-1])
+
+
+def report(results: dict, args) -> str:
+    height, width = args.size
+    lines = [f"g2r_jax throughput, {height}x{width} frames ({height * width / 1e6:.1f} MP), "
+             f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPU(s)"]
+    bandwidth = results.get("bandwidth")
+    if bandwidth:
+        lines.append(f"memory bandwidth (copy, read+write): numpy {bandwidth['numpy_copy_GBps']:.1f} GB/s, "
+                     f"JAX {bandwidth['jax_copy_GBps']:.1f} GB/s on {bandwidth['device']}")
+    numpy_result, jax_result = results.get("numpy"), results.get("jax")
+    if numpy_result:
+        lines.append(f"numpy published steps: {numpy_result['seconds_per_frame']:.2f} s/frame "
+                     f"({numpy_result['frames_per_s']:.3f} frames/s), peak traced {numpy_result['peak_traced_MiB']:.0f} MiB, "
+                     f"peak RSS {numpy_result['peak_rss_MiB']:.0f} MiB")
+    if jax_result:
+        lines.append(f"JAX on {jax_result['platform']} ({jax_result['device']}), batch {jax_result['batch']}, "
+                     f"profile {jax_result['profile']}, peak RSS {jax_result['peak_rss_MiB']:.0f} MiB"
+                     + (f", device peak {jax_result['device_peak_MiB']:.0f} MiB" if "device_peak_MiB" in jax_result else ""))
+        for name in ("vmap_noise_off", "vmap_noise_on", "batch_noise_off", "batch_noise_on"):
+            entry = jax_result[name]
+            text = f"  {name:16s} {entry['frames_per_s']:8.2f} frames/s ({1e3 / entry['frames_per_s']:.0f} ms/frame)"
+            if numpy_result:
+                text += f", {entry['frames_per_s'] / numpy_result['frames_per_s']:.0f}x numpy"
+            if bandwidth:
+                traffic = entry["frames_per_s"] * height * width * BYTES_PER_PIXEL / 1e9
+                text += f", {traffic:.2f} GB/s = {100 * traffic / bandwidth['bandwidth_GBps']:.1f}% of bandwidth"
+            lines.append(text)
+        for kind in ("vmap", "batch"):
+            ratio = jax_result[f"{kind}_noise_off"]["frames_per_s"] / jax_result[f"{kind}_noise_on"]["frames_per_s"]
+            lines.append(f"  noise costs {ratio:.2f}x the noise-off time ({kind})")
+    sampling = results.get("sampling")
+    if sampling:
+        lines.append(f"sampling {sampling['samples']:,} illuminants + CSTs: JAX {sampling['jax_seconds']:.3f} s "
+                     f"(first call {sampling['jax_first_call_seconds']:.1f} s); colour_hdri loop "
+                     f"{sampling['loop_subset_seconds']:.2f} s for {sampling['loop_subset']} samples, extrapolated "
+                     f"{sampling['loop_seconds_extrapolated']:.0f} s; speed-up {sampling['speedup']:.0f}x")
+    convert = results.get("convert")
+    if convert:
+        lines.append(f"end to end, {convert['frames']} PNGs: g2r-convert {convert['g2r_convert']['seconds']:.1f} s "
+                     f"({convert['g2r_convert']['frames_per_s']:.2f} frames/s), published numpy "
+                     f"{convert['published_numpy']['seconds']:.1f} s ({convert['published_numpy']['frames_per_s']:.3f} "
+                     f"frames/s); speed-up {convert['speedup']:.1f}x (process start, JIT compile, decode and "
+                     f"encode included)")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parse(argv)
+    if args.section:
+        print(json.dumps(SECTIONS[args.section](args)))
+        return 0
+    passthrough = (["--quick"] if args.quick else []) + [
+        "--profile", args.profile, "--batch", str(args.batch), "--frames", str(args.frames),
+        "--samples", str(args.samples), "--loop-samples", str(args.loop_samples), "--workdir", args.workdir]
+    results = {"size": list(args.size), "cpus": os.cpu_count(), "load_average_start": os.getloadavg()}
+    for name in args.sections.split(","):
+        start = time.perf_counter()
+        results[name] = run_section(name, passthrough)
+        print(f"[{name}: {time.perf_counter() - start:.0f} s]", file=sys.stderr, flush=True)
+    results["load_average_end"] = os.getloadavg()
+    print(report(results, args))
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
