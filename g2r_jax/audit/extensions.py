@@ -63,7 +63,8 @@ def _noise_scales(measured, simulated, profile):
 
 
 def _per_colour(profile, values):
-    """Average over the CFA positions of one colour (the two greens of a Bayer tile).
+    """Average over the CFA positions of one colour (the two greens of a Bayer tile); used for
+    the shading fall-off and the added black pedestal.
 
     Lens and colour shading is a property of the optics and the colour filter, so both green
     positions share one fall-off. Fitting them apart lets the noise of two estimates become a
@@ -91,7 +92,10 @@ def fit(cause: str, measured: list, simulated: list, profile, *, seed: int = 0) 
     """Fit the parameters of `cause`'s extension; see the module docstring."""
     effects = profile.effects
     if cause == "black_level":
-        pedestal = np.asarray(effects.black_pedestal, np.float64) + _delta(cause, measured, simulated, profile) * _span(profile)
+        # one added pedestal per colour: two noisy per-green estimates would leave a Gr/Gb offset
+        # difference in the extended profile that reads as green imbalance in the next round
+        delta = _per_colour(profile, _delta(cause, measured, simulated, profile) * _span(profile))
+        pedestal = np.asarray(effects.black_pedestal, np.float64) + delta
         return {"black_pedestal_dn": pedestal.tolist(),
                 "offset_fraction": float(np.mean(pedestal / _span(profile)))}
     if cause == "white_level":
