@@ -99,6 +99,7 @@ def convex_hull_halfplanes(points: np.ndarray) -> np.ndarray:
 
 
 def _model(weights, means, covariances, hull, kind, use_hull, dtype) -> IlluminantModel:
+    dtype = jax.dtypes.canonicalize_dtype(dtype)  # float64 only inside an x64 context
     covariances = np.asarray(covariances, np.float64)
     jitter = 1e-10 * np.eye(2)
     cholesky = np.linalg.cholesky(covariances + jitter)

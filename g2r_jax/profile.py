@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
@@ -176,6 +177,7 @@ class _Reader:
 def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float32) -> SensorProfile:
     """Validate a profile document and build the SensorProfile; raises ProfileError."""
     r = _Reader(source)
+    dtype = jax.dtypes.canonicalize_dtype(dtype)  # float64 only inside an x64 context
     if not isinstance(document, dict) or document.get("schema") != SCHEMA_NAME:
         r.fail("schema", f"not a g2r_jax sensor profile (expected schema {SCHEMA_NAME!r})")
     version = document.get("version")
