@@ -125,7 +125,10 @@ def inject(profile: SensorProfile, cause: str, *, height: int = 200, width: int 
         cov = chol @ np.swapaxes(chol, -1, -2)
         minor = np.linalg.eigh(cov[0])[1][:, 0]          # off the main (locus) direction
         shifted = means + magnitude["shift"] * minor * np.sign(minor[0] or 1.0)
-        mixture = _illuminants._model([0.6, 0.4], np.concatenate([means, shifted]), np.concatenate([cov, cov]),
+        # 60% of the files from the profile's own model (any number of components), 40% shifted
+        weights = np.asarray(model.weights, np.float64)
+        weights = np.concatenate([0.6 * weights, 0.4 * weights]) / weights.sum()
+        mixture = _illuminants._model(weights.tolist(), np.concatenate([means, shifted]), np.concatenate([cov, cov]),
                                       None, "mixture", False, dtype)
         return _profile.replace(profile, illuminants=mixture)
     raise ValueError(f"unknown cause {cause!r}")
