@@ -2,8 +2,9 @@
 
 Each stage is one small pure function; `unprocess` reads top to bottom like the method
 (Graphics2RAW, Seo et al. ICCV 2023, Sec. 3; stage names after Brooks et al., "Unprocessing
-Images for Learned Raw Denoising", CVPR 2019). jit it, vmap it over images and keys; the profile
-is a pytree and may be a jit argument.
+Images for Learned Raw Denoising", CVPR 2019). jit it, vmap it over images and keys, or use
+`unprocess_batch` for a batch whose bytes do not depend on the batching; the profile is a pytree
+and may be a jit argument. Under jit the pixel stages fuse into one vectorised loop per frame.
 
 Colour is the exact inverse of a DNG renderer (DNG spec 1.6, chapter 6): a renderer maps camera
 RGB to XYZ_D50 with CameraToXYZ_D50(xy) for the white xy of AsShotNeutral, then Bradford to D65 and
@@ -163,10 +164,10 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
                                       effect_parameters, quantize=quantize)
 
 
-def _check_image(image):
-    height, width = image.shape[-3], image.shape[-2]
-    if height % 2 or width % 2 or image.ndim < 3 or image.shape[-1] != 3:
-        raise ValueError(f"image must be (H, W, 3) with even H and W, got {image.shape}")
+def _check_image(image, ndim: int = 3):
+    if image.ndim != ndim or image.shape[-1] != 3 or image.shape[-3] % 2 or image.shape[-2] % 2:
+        expected = "(H, W, 3)" if ndim == 3 else "(B, H, W, 3)"
+        raise ValueError(f"image must be {expected} with even H and W, got {image.shape}")
 
 
 def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=None,
@@ -194,8 +195,6 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     metadata a dict of arrays: neutral (3,), xy (2,), cct, iso, exposure_gain, noise_shot (4,),
     noise_read (4,) (normalised units per tile position), converged (white-point solve).
     """
-    if image.ndim != 3:
-        raise ValueError(f"image must be (H, W, 3) with even H and W, got {image.shape}")
     _check_image(image)
     # Steps 2-4: illuminant, white point, colour transform (and the other per-image draws).
     conditions = sample_conditions(key, profile, neutral=neutral, iso=iso, exposure_gain=exposure_gain,
@@ -217,7 +216,7 @@ def unprocess_batch(keys, images, profile, *, neutral=None, iso=None, exposure_g
     batched or sharded. The pixels, element-wise, are vmapped. `neutral` is None or (B, 3);
     `iso` and `exposure_gain` are None or shared scalars; other options as `unprocess`.
     """
-    _check_image(images)
+    _check_image(images, ndim=4)
 
     def conditions_of(args):
         key, row = args
