@@ -123,11 +123,14 @@ def inject(profile: SensorProfile, cause: str, *, height: int = 200, width: int 
         means = np.asarray(model.means, np.float64)
         chol = np.asarray(model.cholesky, np.float64)
         cov = chol @ np.swapaxes(chol, -1, -2)
-        minor = np.linalg.eigh(cov[0])[1][:, 0]          # off the main (locus) direction
+        weights = np.asarray(model.weights, np.float64) / np.sum(model.weights)
+        # off the main direction of the whole population (for a locus model: across the locus;
+        # its components are isotropic, so one component's axes say nothing)
+        spread = np.cov(means.T, aweights=weights) if len(means) > 1 else np.zeros((2, 2))
+        minor = np.linalg.eigh(spread + np.einsum("k,kij->ij", weights, cov))[1][:, 0]
         shifted = means + magnitude["shift"] * minor * np.sign(minor[0] or 1.0)
         # 60% of the files from the profile's own model (any number of components), 40% shifted
-        weights = np.asarray(model.weights, np.float64)
-        weights = np.concatenate([0.6 * weights, 0.4 * weights]) / weights.sum()
+        weights = np.concatenate([0.6 * weights, 0.4 * weights])
         mixture = _illuminants._model(weights.tolist(), np.concatenate([means, shifted]), np.concatenate([cov, cov]),
                                       None, "mixture", False, dtype)
         return _profile.replace(profile, illuminants=mixture)
