@@ -160,10 +160,17 @@ def xy_to_camera_neutral(xy, model: DngColourModel):
     return neutral / neutral[1]
 
 
-def _neutral_to_xy_step(xy, args):
-    neutral, model = args
-    XYZ = jnp.linalg.solve(matrix_XYZ_to_camera(xy, model), neutral)
+def _xy_at_weight(weight, neutral, model: DngColourModel):
+    """White xy of `neutral` under the matrices interpolated with `weight`."""
+    color_matrix = _interpolate(model.color_matrix, weight)
+    calibration = _interpolate(model.camera_calibration, weight)
+    XYZ = jnp.linalg.solve((model.analog_balance[:, None] * calibration) @ color_matrix, neutral)
     return _colour.XYZ_to_xy(XYZ)
+
+
+def _weight_residual(weight, args):
+    neutral, model = args
+    return interpolation_weight(_colour.xy_to_CCT(_xy_at_weight(weight, neutral, model)), model) - weight
 
 
 @functools.partial(jax.jit, static_argnames=("max_steps", "tolerance", "throw"))
@@ -172,12 +179,14 @@ def camera_neutral_to_xy(neutral, model: DngColourModel, *, max_steps: int = 200
     """White-balance xy of a camera neutral: the DNG fixed point, solved with optimistix.
 
     DNG spec, "Translating Camera Neutral Coordinates to White Balance xy Coordinates":
-    iterate xy <- XYZ_to_xy(XYZtoCamera(xy)^-1 . neutral) from D50 until it stops moving. The
-    fixed point is found by Newton's method from D50 (optimistix), which converges in a few
-    steps and also where the plain iteration would oscillate.
+    iterate xy <- XYZ_to_xy(XYZtoCamera(xy)^-1 . neutral) until it stops moving. XYZtoCamera
+    depends on xy only through the interpolation weight w in [0, 1], so the fixed point is a
+    root of g(w) = weight(CCT(xy(w))) - w, and g(-d) > 0 > g(1 + d): bisection (optimistix) always
+    finds it, also where the specification's plain iteration cycles (the SDK then averages two
+    iterates after 30 passes) or Newton's method overshoots.
 
     **Arguments:** `neutral` (3,) camera RGB of a neutral surface; `model`; `max_steps`;
-    `tolerance` (default: 100 ulp of the dtype); `throw`: raise if it does not converge
+    `tolerance` on w (default: 4 ulp of the dtype); `throw`: raise if it does not converge
     (set False inside sampling code and read the flag instead).
 
     **Returns:** `(xy, converged)`.
@@ -185,15 +194,19 @@ def camera_neutral_to_xy(neutral, model: DngColourModel, *, max_steps: int = 200
     neutral = jnp.asarray(neutral)
     dtype = jnp.result_type(neutral, model.color_matrix)
     if tolerance is None:
-        tolerance = float(100 * jnp.finfo(dtype).eps)
-    # Newton on xy - step(xy) = 0: the same fixed point as the specification's iteration, also
-    # where that iteration does not contract (the SDK then averages a two-cycle after 30 passes).
-    solver = optx.Newton(rtol=tolerance, atol=tolerance)
-    start = jnp.asarray(_colour.XY_D50, dtype)
-    solution = optx.fixed_point(_neutral_to_xy_step, solver, start, args=(neutral.astype(dtype), model),
-                                max_steps=max_steps, throw=throw)
+        tolerance = float(4 * jnp.finfo(dtype).eps)
+    neutral = neutral.astype(dtype)
+    solver = optx.Bisection(rtol=tolerance, atol=tolerance)
+    solution = optx.root_find(_weight_residual, solver, jnp.asarray(0.5, dtype), args=(neutral, model),
+                              # a margin outside [0, 1] keeps g strictly positive/negative at the ends
+                              # (g(0) = 0 when the white is beyond the upper calibration CCT)
+                              options=dict(lower=jnp.asarray(-0.01, dtype), upper=jnp.asarray(1.01, dtype)),
+                              max_steps=max_steps, throw=throw)
     converged = solution.result == optx.RESULTS.successful
-    return solution.value, converged
+    weight = solution.value
+    xy = _xy_at_weight(weight, neutral, model)
+    # a second, exact DNG step at the solved white (identical to xy at convergence)
+    return _xy_at_weight(interpolation_weight(_colour.xy_to_CCT(xy), model), neutral, model), converged
 
 
 @jax.jit

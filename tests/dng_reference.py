@@ -12,6 +12,10 @@ D65 = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
 I3 = np.eye(3)
 
 
+class NotConverged(ArithmeticError):
+    """The specification's plain iteration cycles instead of converging (it does not contract)."""
+
+
 def neutral_to_xy(neutral, *args, iterations=500):
     """The DNG neutral -> xy iteration built on colour_hdri's XYZtoCamera, stopping when xy moves
     less than 1e-13. (colour_hdri's own `camera_neutral_to_xy` tests |sum(dx, dy)|, which can stop
@@ -23,7 +27,7 @@ def neutral_to_xy(neutral, *args, iterations=500):
         if np.max(np.abs(new - xy)) < 1e-13:
             return new
         xy = new
-    raise AssertionError(f"reference iteration did not converge for {neutral}")
+    raise NotConverged(f"reference iteration did not converge for {neutral}")
 
 
 def colour_hdri_arguments(info):

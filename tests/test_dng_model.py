@@ -1,5 +1,7 @@
 """The DNG colour model against colour_hdri (Adobe DNG SDK colour processing) to 1e-6."""
 
+import zlib
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -9,7 +11,7 @@ colour_hdri = pytest.importorskip("colour_hdri")
 from colour_hdri.models import dng as reference  # noqa: E402
 
 from g2r_jax import dng  # noqa: E402
-from dng_reference import neutral_to_xy  # noqa: E402
+from dng_reference import NotConverged, neutral_to_xy  # noqa: E402
 from g2r_jax._x64 import enable_x64  # noqa: E402
 
 I3 = np.eye(3)
@@ -58,7 +60,8 @@ CASES = [
 
 @pytest.mark.parametrize("case", CASES)
 def test_matrices_and_white_point_agree_with_colour_hdri(case):
-    rng = np.random.default_rng(hash(str(case)) % 2**32)
+    rng = np.random.default_rng(zlib.crc32(str(case).encode()))
+    agreements = []
     for _ in range(8):
         cm, cc, fm, ab = random_camera(rng, forward=case["forward"], calibration=case["calibration"], codes=case["codes"])
         model = dng.DngColourModel.from_tags(case["codes"], cm, cc, fm, ab, dtype=np.float64)
@@ -73,10 +76,17 @@ def test_matrices_and_white_point_agree_with_colour_hdri(case):
                                        reference.matrix_camera_space_to_XYZ(xy, *ccts, *cm_, *cc_, ab_, *fm_), atol=1e-6)
             neutral = reference.xy_to_camera_neutral(xy, *ccts, *cm_, *cc_, ab_)
             np.testing.assert_allclose(dng.xy_to_camera_neutral(jnp.asarray(xy), model), neutral, atol=1e-6)
-            expected_xy = neutral_to_xy(neutral, *ccts, *cm_, *cc_, ab_)
             got_xy, converged = dng.camera_neutral_to_xy(jnp.asarray(neutral), model)
             assert bool(converged)
-            np.testing.assert_allclose(got_xy, expected_xy, atol=1e-6)
+            # always: colour_hdri maps our white point back to the neutral (a true fixed point)
+            np.testing.assert_allclose(reference.xy_to_camera_neutral(np.asarray(got_xy), *ccts, *cm_, *cc_, ab_),
+                                       neutral, atol=1e-9)
+            try:   # and where the specification's iteration converges, it lands on the same xy
+                np.testing.assert_allclose(got_xy, neutral_to_xy(neutral, *ccts, *cm_, *cc_, ab_), atol=1e-6)
+                agreements.append(1)
+            except NotConverged:
+                agreements.append(0)
+    assert sum(agreements) >= len(agreements) // 2
 
 
 def test_single_calibrated_matrix_agrees_with_colour_hdri():
