@@ -21,7 +21,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-_CANDIDATES = 64  # rejection-sampling draws per sample; P(all outside hull) is negligible
+_CANDIDATES = 16  # rejection draws per sample; with the hull of the data holding most of the
+                 # Gaussian's mass, P(all 16 outside) is negligible
 
 
 class IlluminantModel(eqx.Module):
@@ -47,14 +48,18 @@ def inside_hull(points, hull, slack: float = 1e-9):
 def sample_chromaticity(key, model: IlluminantModel):
     """One (r/g, b/g) draw: mixture component, Gaussian, rejection to the hull.
 
-    Fixed-size rejection (`_CANDIDATES` draws, first one inside is kept) keeps shapes static
-    for jit/vmap; if none lands inside, the chosen component's mean is returned (it lies
-    inside the hull of the data it was fitted to).
+    The component comes from one uniform against the cumulative weights. Without a hull one
+    candidate is drawn; with one, a fixed number (`_CANDIDATES`) keeps shapes static for
+    jit/vmap and the first inside is kept; if none lands inside, the first candidate's component
+    mean is returned (it lies inside the hull of the data it was fitted to).
     """
     k_component, k_normal = jax.random.split(key)
     dtype = model.means.dtype
-    components = jax.random.categorical(k_component, jnp.log(model.weights), shape=(_CANDIDATES,))
-    normal = jax.random.normal(k_normal, (_CANDIDATES, 2), dtype)
+    count = _CANDIDATES if model.use_hull else 1
+    cumulative = jnp.cumsum(model.weights) / jnp.sum(model.weights)
+    uniform = jax.random.uniform(k_component, (count,), dtype)
+    components = jnp.minimum(jnp.searchsorted(cumulative, uniform, side="right"), model.weights.shape[0] - 1)
+    normal = jax.random.normal(k_normal, (count, 2), dtype)
     candidates = model.means[components] + jnp.einsum("nij,nj->ni", model.cholesky[components], normal)
     if not model.use_hull:
         return candidates[0]
