@@ -10,7 +10,7 @@ from .dng import DngColourModel, camera_neutral_to_xy, camera_neutrals_to_xy, xy
 from .fit import fit_profile
 from .illuminants import IlluminantModel, sample_neutrals
 from .profile import ProfileError, SensorProfile, load_profile, save_profile, shipped_profiles
-from .unprocess import unprocess
+from .unprocess import unprocess, unprocess_batch
 
 
 def diagnose(*args, **kwargs):
@@ -23,7 +23,7 @@ def diagnose(*args, **kwargs):
 __all__ = [
     "DngColourModel", "IlluminantModel", "ProfileError", "SensorProfile", "camera_neutral_to_xy",
     "camera_neutrals_to_xy", "diagnose", "fit_profile", "load_profile", "sample_neutrals", "save_profile",
-    "shipped_profiles", "unprocess", "xy_to_camera_neutral",
+    "shipped_profiles", "unprocess", "unprocess_batch", "xy_to_camera_neutral",
 ]
 
 __version__ = "0.1.0"
