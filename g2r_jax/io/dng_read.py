@@ -378,6 +378,17 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
 
     # --- colour (spec ch. 4 'ColorMatrix1'..'ForwardMatrix3'; spec 'Colour' for their use)
     illuminants, matrices, calibrations, forwards = [], [], [], []
+
+    def optional_matrix(name):
+        """A 3x3 matrix tag from IFD0 (then the raw IFD), or None when absent."""
+        tag = ifd0_first(name)
+        if tag is None:
+            return None
+        values = _floats(path, tag, name)
+        if values.size != 9:
+            raise DngError(path, f"{name} has {values.size} values, expected 9")
+        return values.reshape(3, 3)
+
     for k in (1, 2, 3):
         cm = ifd0_first(f"ColorMatrix{k}")
         if cm is None:
@@ -389,22 +400,8 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
         matrices.append(values.reshape(3, 3))
         ill = ifd0_first(f"CalibrationIlluminant{k}")
         illuminants.append(_ints(path, ill, f"CalibrationIlluminant{k}")[0] if ill is not None else 0)
-        cc = ifd0_first(f"CameraCalibration{k}")
-        if cc is not None:
-            cvals = _floats(path, cc, f"CameraCalibration{k}")
-            if cvals.size != 9:
-                raise DngError(path, f"CameraCalibration{k} has {cvals.size} values, expected 9")
-            calibrations.append(cvals.reshape(3, 3))
-        else:
-            calibrations.append(None)
-        fm = ifd0_first(f"ForwardMatrix{k}")
-        if fm is not None:
-            fvals = _floats(path, fm, f"ForwardMatrix{k}")
-            if fvals.size != 9:
-                raise DngError(path, f"ForwardMatrix{k} has {fvals.size} values, expected 9")
-            forwards.append(fvals.reshape(3, 3))
-        else:
-            forwards.append(None)
+        calibrations.append(optional_matrix(f"CameraCalibration{k}"))
+        forwards.append(optional_matrix(f"ForwardMatrix{k}"))
     info.calibration_illuminants = tuple(illuminants)
     info.color_matrices = tuple(matrices)
     if any(c is not None for c in calibrations):   # spec default for a missing one: identity
