@@ -15,6 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from . import colour as _colour
 from . import dng as _dng
 from ._x64 import enable_x64
 from . import illuminants as _illuminants
@@ -66,7 +67,7 @@ def fit_color_matrix_pair(infos, dtype=np.float32) -> _dng.DngColourModel:
             neutral = as_shot_neutral(info)
             neutral = np.ones(3) if neutral is None else neutral
             xy, _ = _dng.camera_neutral_to_xy(jnp.asarray(neutral), model)
-            weights.append(float(_dng.interpolation_weight(_dng._colour.xy_to_CCT(xy), model)))
+            weights.append(float(_dng.interpolation_weight(_colour.xy_to_CCT(xy), model)))
             targets.append(np.asarray(_dng.matrix_XYZ_to_camera(xy, model)))
         targets, weights = jnp.asarray(np.stack(targets)), jnp.asarray(weights)
         reference = colour_model_from_info(infos[0], np.float64)

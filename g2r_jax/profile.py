@@ -27,6 +27,8 @@ SCHEMA_NAME = "g2r_jax.sensor_profile"
 SCHEMA_VERSION = 1
 SHIPPED_PROFILES_DIR = Path(__file__).resolve().parent.parent / "profiles"
 CFA_LETTERS = "RGB"
+_EFFECT_DEFAULTS = {"black_pedestal": [0.0] * 4, "clip_level": 1.0, "channel_gain": [1.0] * 4,
+                    "shading": [[0.0, 0.0]] * 4, "row_noise_std": 0.0, "column_noise_std": 0.0}
 
 
 class ProfileError(ValueError):
@@ -242,8 +244,7 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
                                          default=[iso.min(), iso.max()]), "noise.iso_range", (2,), positive=True)))
 
     effects_doc = r.get(document, "effects", "effects", optional=True, default={})
-    defaults = profile_to_dict_effects_defaults()
-    get_effect = lambda key, shape: r.array(r.get(effects_doc, key, "effects", optional=True, default=defaults[key]),
+    get_effect = lambda key, shape: r.array(r.get(effects_doc, key, "effects", optional=True, default=_EFFECT_DEFAULTS[key]),
                                             f"effects.{key}", shape)
     defects = r.get(effects_doc, "defects", "effects", optional=True, default=[])
     defects = r.array(defects, "effects.defects", (None, 3)) if len(defects) else np.zeros((0, 3))
@@ -271,11 +272,6 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
         cfa_pattern=jnp.asarray(cfa, jnp.int32), black_level=as_j(black), white_level=as_j(white),
         baseline_exposure=as_j(float(document.get("baseline_exposure", 0.0))), colour=colour,
         illuminants=illuminant_model, exposure=exposure, noise=noise, effects=effects, info=info)
-
-
-def profile_to_dict_effects_defaults() -> dict:
-    return {"black_pedestal": [0.0] * 4, "clip_level": 1.0, "channel_gain": [1.0] * 4,
-            "shading": [[0.0, 0.0]] * 4, "row_noise_std": 0.0, "column_noise_std": 0.0}
 
 
 def shipped_profiles() -> list[str]:

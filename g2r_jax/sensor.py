@@ -183,13 +183,6 @@ def _normal_from_counter(key, counter):
     return np.float32(np.sqrt(2)) * jax.lax.erf_inv(uniform)
 
 
-def tile_position(mosaic_shape):
-    """(H, W) int32: the tile position p = 2 * (row % 2) + (col % 2) of every pixel."""
-    rows = jax.lax.broadcasted_iota(jnp.int32, mosaic_shape, 0)
-    cols = jax.lax.broadcasted_iota(jnp.int32, mosaic_shape, 1)
-    return 2 * (rows & 1) + (cols & 1)
-
-
 def per_position(values, mosaic_shape):
     """(4, ...) values per tile position -> (H, W, ...) value of every pixel's position.
 
@@ -215,12 +208,6 @@ def radial_distance_squared(plane_shape, dtype=jnp.float32):
     """r^2 of every full-mosaic pixel, as planes (4, H/2, W/2); r = 1 in the corners."""
     half_h, half_w = plane_shape
     return to_planes(radial_distance_squared_mosaic((2 * half_h, 2 * half_w), dtype))
-
-
-def shading_gain(plane_shape, shading, dtype=jnp.float32):
-    """Per-plane radial gain 1 + a1 r^2 + a2 r^4 (4, H/2, W/2)."""
-    half_h, half_w = plane_shape
-    return to_planes(shading_gain_mosaic((2 * half_h, 2 * half_w), shading, dtype))
 
 
 def shading_gain_mosaic(mosaic_shape, shading, dtype=jnp.float32):

@@ -61,13 +61,6 @@ def matrix_srgb_to_white_balanced_camera_published(cct, colour_model):
     return xyz_to_camera @ jnp.asarray(_colour.MATRIX_SRGB_TO_XYZ, cct.dtype)
 
 
-def cfa_planes(linear):
-    """(H, W, 3) -> (4, H/2, W/2, 3): the pixels of each 2x2 tile position p = 2 * (row % 2) + (col % 2)."""
-    height, width = linear.shape[0], linear.shape[1]
-    tiles = linear.reshape(height // 2, 2, width // 2, 2, linear.shape[2])
-    return tiles.transpose(1, 3, 0, 2, 4).reshape(4, height // 2, width // 2, linear.shape[2])
-
-
 def _dot_channels(rgb, weights):
     """sum_c rgb[..., c] * weights[c], written out: an einsum over 3 channels becomes a dot
     that XLA runs on a materialised copy of its operands, this fuses with its neighbours."""

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..convert import IMAGE_EXTENSIONS
 from ..io.dng_info import DngError, DngInfo
 
 DNG_SUFFIXES = (".dng",)
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
 
 
 def measured_paths(folder) -> list[Path]:
@@ -48,21 +48,22 @@ def load_measured(items) -> list[tuple[np.ndarray, DngInfo]]:
 def load_scenes(folder, n: int, height: int, width: int) -> np.ndarray:
     """(n, H, W, 3) sRGB scenes in [0, 1] from the images of a folder (cycled if fewer than n),
     each resized to the measured files' size."""
-    from PIL import Image
+    import jax
+
+    from ..colour import linear_to_srgb
+    from ..io.images import read_image
 
     folder = Path(folder)
     if not folder.is_dir():
         raise DngError(folder, "scene folder not found")
-    paths = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    paths = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_EXTENSIONS)
     if not paths:
-        raise DngError(folder, f"no scene images ({', '.join(IMAGE_SUFFIXES)}) in this folder")
+        raise DngError(folder, f"no scene images ({', '.join(IMAGE_EXTENSIONS)}) in this folder")
     scenes = []
     for i in range(n):
-        path = paths[i % len(paths)]
-        try:
-            with Image.open(path) as image:
-                image = image.convert("RGB").resize((width, height), Image.BILINEAR)
-                scenes.append(np.asarray(image, np.float32) / 255.0)
-        except OSError as error:
-            raise DngError(path, f"cannot read scene image ({error})") from None
+        # the project's reader: 8/16-bit sRGB or linear EXR, with its checks and error messages
+        image, encoding = read_image(paths[i % len(paths)])
+        if encoding == "linear":
+            image = np.asarray(linear_to_srgb(np.clip(image, 0.0, 1.0)))
+        scenes.append(np.asarray(jax.image.resize(image, (height, width, 3), "linear"), np.float32))
     return np.stack(scenes)

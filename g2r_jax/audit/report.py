@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.atomic import atomic_write_bytes
+
 
 def _plain(value):
     """JSON-ready copy: numpy scalars/arrays to Python, non-finite floats to None."""
@@ -38,7 +40,6 @@ def to_json(report: dict) -> dict:
 
 
 def write_json(report: dict, path) -> None:
-    from ..io.atomic import atomic_write_bytes
 
     text = json.dumps(to_json(report), indent=1, allow_nan=False)
     atomic_write_bytes(Path(path), (text + "\n").encode())
@@ -92,8 +93,8 @@ def write_html(report: dict, folder) -> Path | None:
         f"<td>{f['score']:.2f}</td><td>{html.escape(f['evidence'])}</td>"
         f"<td>{html.escape(json.dumps(_plain(f.get('gain'))))}</td></tr>" for f in report["findings"])
     page = folder / "report.html"
-    page.write_text(f"<html><head><meta charset='utf-8'><title>g2r-diagnose</title></head><body>"
+    atomic_write_bytes(page, (f"<html><head><meta charset='utf-8'><title>g2r-diagnose</title></head><body>"
                     f"<h1>g2r-diagnose</h1><pre>{html.escape(summary(report))}</pre>{image}"
                     f"<table border=1><tr><th>cause</th><th>significant</th><th>score</th><th>evidence</th>"
-                    f"<th>held-out gain</th></tr>{rows}</table></body></html>\n")
+                    f"<th>held-out gain</th></tr>{rows}</table></body></html>\n").encode())
     return page
