@@ -7,70 +7,18 @@ on fit splits and kept only if it lowers the held-out discrepancy.
 from __future__ import annotations
 
 import time
-import warnings
 
 import numpy as np
 
-from . import extensions, gain, loading, measures, significance, simulate, stats
+from . import gain, loading, simulate, stats
+from .causes import REGISTRY
 from .scenes import scene_set
-from .vocabulary import CAUSES, FLOOR, STATISTICS, TOLERANCE, UNEXPLAINED
-
-_MEAN_TESTS = ("exposure_distribution", "noise_model", "black_level", "white_level", "green_imbalance",
-               "lens_shading", "banding")
-
-
-def _mean_finding(cause, measured, simulated, profile, n_permutations, seed):
-    m = measures.vectors(cause, measured, profile)
-    s = measures.vectors(cause, simulated, profile)
-    test = significance.max_t_permutation(m, s, floor=FLOOR[cause], n_permutations=n_permutations, seed=seed)
-    magnitude = float(np.nanmax(np.abs(test["difference"]))) if np.any(np.isfinite(test["difference"])) else 0.0
-    evidence = (f"measured - simulated mean = {np.array2string(test['difference'], precision=5)}; "
-                f"max |t| = {test['score']:.2f}, permutation p = {test['p']:.4g}")
-    return {"cause": cause, "score": test["score"], "p": test["p"], "magnitude": magnitude,
-            "statistic": STATISTICS[cause], "evidence": evidence,
-            "difference": np.nan_to_num(test["difference"]).tolist()}
-
-
-def _illuminant_finding(measured, profile, n_permutations, seed):
-    """Two tests of the as-shot neutrals against the profile's illuminant model, Bonferroni-
-    combined: the energy test (any difference of distributions) and a parametric-bootstrap
-    likelihood test (neutrals where the model has little density, e.g. an off-locus lamp type)."""
-    from .. import illuminants as _illuminants
-
-    points = measures.neutral_chromaticities(measured)
-    if len(points) < 3:
-        return {"cause": "illuminant_distribution", "score": 0.0, "p": 1.0, "magnitude": 0.0,
-                "statistic": STATISTICS["illuminant_distribution"],
-                "evidence": f"only {len(points)} files carry an as-shot neutral: not tested", "difference": []}
-    model = profile.illuminants
-    reference = gain.illuminant_samples(model, 200, seed)
-    energy = significance.energy_permutation(points, reference, n_permutations=n_permutations, seed=seed)
-    likelihood = significance.likelihood_bootstrap(
-        points, lambda x: _illuminants.mixture_log_likelihood(model, x),
-        lambda m, s: gain.illuminant_samples(model, m, s + 1), n_boot=n_permutations, seed=seed)
-    p = min(1.0, 2 * min(energy["p"], likelihood["p"]))
-    return {"cause": "illuminant_distribution", "score": max(energy["score"], likelihood["score"]), "p": p,
-            "magnitude": energy["energy"], "statistic": STATISTICS["illuminant_distribution"],
-            "evidence": f"energy distance {energy['energy']:.4f} between {len(points)} as-shot neutrals and "
-                        f"200 profile samples (permutation p = {energy['p']:.4g}); mean log density under the "
-                        f"profile {likelihood['observed']:.2f} (bootstrap p = {likelihood['p']:.4g})",
-            "difference": []}
-
-
-def _defect_finding(measured, simulated):
-    shape = measured[0]["shape"]
-    found = significance.consistent_outliers([f["outliers"] for f in measured], shape)
-    control = significance.consistent_outliers([f["outliers"] for f in simulated], shape)
-    excess = found["count"] - control["count"]
-    p = found["p"] if excess > 0 else 1.0
-    return {"cause": "defective_pixels", "score": found["score"] if excess > 0 else 0.0, "p": p,
-            "magnitude": float(max(excess, 0)), "statistic": STATISTICS["defective_pixels"],
-            "evidence": f"{found['count']} pixels are outliers in many measured files (chance level "
-                        f"{found['expected']:.3g}), {control['count']} in simulated files", "difference": []}
+from .vocabulary import CAUSES, UNEXPLAINED
 
 
 def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, seed: int = 0,
-             alpha: float = 0.01, folds: int = 3, n_permutations: int = 2000, progress=None) -> dict:
+             alpha: float = 0.01, folds: int = 3, n_permutations: int = 2000, progress=None,
+             causes=None) -> dict:
     """Compare measured DNGs with the profile's simulation; name, fit and validate causes.
 
     **Arguments:**
@@ -83,6 +31,7 @@ def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, 
     - `alpha`: family-wise error rate over all tests (Bonferroni over the statistics, maxT
       within each).
     - `folds`: cross-validation folds for the held-out gain.
+    - `causes`: the causes to test (`Cause` instances); default: the registry `causes.REGISTRY`.
 
     **Returns:** the report dict (REPORT.json's content): `findings` (one per tested statistic,
     significant first, by score), `unexplained`, `extended_profile` (the SensorProfile with every
@@ -91,6 +40,8 @@ def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, 
     """
     started = time.perf_counter()
     say = progress or (lambda message: None)
+    registry = tuple(REGISTRY if causes is None else causes)
+    by_name = {c.name: c for c in registry}
     files = loading.load_measured(measured)
     shapes = {m.shape for m, _ in files}
     if len(shapes) > 1:
@@ -109,62 +60,60 @@ def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, 
 
     def simulate_stats(p, cause="all"):
         sim = simulate.simulate(p, scene_images, seed + 104729)
-        return [stats.file_statistics(m, info, profile, with_outliers=cause in ("all", "defective_pixels"))
+        return [stats.file_statistics(m, info, profile, 
+                                     with_outliers=cause == "all" or by_name[cause].needs_outliers)
                 for m, info in sim]
 
     say(f"simulating {len(scene_images)} files")
     simulated_stats = simulate_stats(profile)
     timing = {"statistics_s": time.perf_counter() - started}
 
-    tests = len(_MEAN_TESTS) + 3
+    tests = len(registry)
     threshold = alpha / tests
 
     def test_all(causes, sim_stats, current):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            out = [_mean_finding(c, measured_stats, sim_stats, current, n_permutations, seed)
-                   for c in causes if c in _MEAN_TESTS + ("noise_correlation",)]
-            if "illuminant_distribution" in causes:
-                out.append(_illuminant_finding(measured_stats, current, n_permutations, seed))
-            if "defective_pixels" in causes:
-                out.append(_defect_finding(measured_stats, sim_stats))
-        for f in out:
-            f["significant"] = bool(f["p"] < threshold and f["magnitude"] >= TOLERANCE[f["cause"]])
-            f["params"], f["gain"] = {}, None
+        out = []
+        for cause in causes:
+            finding = cause.test(measured_stats, sim_stats, current, n_permutations=n_permutations, seed=seed)
+            finding["significant"] = cause.is_significant(finding, threshold)
+            finding["params"], finding["gain"] = {}, None
+            out.append(finding)
         return sorted(out, key=lambda f: (not f["significant"], -f["score"]))
 
     # Explain away: take the strongest significant difference, validate its extension on held-out
     # files, and if kept re-simulate with it and re-test the rest (a difference that another
     # cause's extension reproduces is not a finding of its own).
     extended, current_stats, unexplained, done = profile, simulated_stats, [], []
-    remaining = list(CAUSES) + ["noise_correlation"]
+    remaining = list(registry)
     while remaining:
         results = test_all(remaining, current_stats, extended)
         top = results[0]
         if not top["significant"]:
             done.extend(results)
             break
-        remaining.remove(top["cause"])
-        if top["cause"] == "noise_correlation":
+        cause = next(c for c in remaining if c.name == top["cause"])
+        remaining.remove(cause)
+        if not cause.extensible:
             unexplained.append({"statistic": top["statistic"], "candidate": None, "score": top["score"],
                                 "evidence": top["evidence"]})
             done.append(dict(top, cause=UNEXPLAINED, kept=False))
             continue
-        say(f"cross-validating the {top['cause']} extension")
-        top["gain"] = gain.cross_validate(top["cause"], measured_stats, current_stats, extended, simulate_stats,
+        say(f"cross-validating the {cause.name} extension")
+        top["gain"] = gain.cross_validate(cause, measured_stats, current_stats, extended, simulate_stats,
                                           folds=min(folds, len(files)), seed=seed)
         if top["gain"]["after"] < top["gain"]["before"]:
-            top["params"] = extensions.fit(top["cause"], measured_stats, current_stats, extended, seed=seed)
+            top["params"] = cause.fit(measured_stats, current_stats, extended, seed=seed)
             top["kept"] = True
-            extended = extensions.apply(extended, top["cause"], top["params"])
+            extended = cause.apply(extended, top["params"])
             current_stats = simulate_stats(extended)
             done.append(top)
         else:
             top["kept"] = False
-            unexplained.append({"statistic": top["statistic"], "candidate": top["cause"], "score": top["score"],
+            unexplained.append({"statistic": top["statistic"], "candidate": cause.name, "score": top["score"],
                                 "evidence": top["evidence"] + "; the candidate's extension does not help on held-out files"})
-            done.append(dict(top, cause=UNEXPLAINED, candidate=top["cause"]))
-    findings = [f for f in done if f["cause"] != "noise_correlation"]
+            done.append(dict(top, cause=UNEXPLAINED, candidate=cause.name))
+    # a statistic without an extension is a finding only when significant (as `unexplained`)
+    findings = [f for f in done if f["cause"] == UNEXPLAINED or by_name[f["cause"]].extensible]
     findings.sort(key=lambda f: (not f["significant"], -f["score"]))
     timing["total_s"] = time.perf_counter() - started
     return {

@@ -1,0 +1,125 @@
+"""The interface every audit cause implements, and the defaults most causes share.
+
+A cause is one thing a profile can get wrong about a camera. Its class says, in one place:
+
+- what it measures: `statistic` (words), `vectors(files, profile)` -> (n_files, k) per-file
+  statistic from the dicts of `stats.file_statistics`;
+- how it is tested: `test(measured, simulated, profile, ...)` -> a finding dict; the default is
+  the permutation maxT test over files of `vectors` (`significance.max_t_permutation`), with
+  `floor` (resolution added to standard errors) and `tolerance` (smallest difference worth
+  reporting, in the statistic's units);
+- how its extension is fitted and applied: `fit(measured, simulated, profile)` -> JSON-ready
+  params, `apply(profile, params)` -> the extended profile (`extensible = False` for a
+  statistic with no extension yet: a significant difference is reported as unexplained);
+- how the extension is validated: `metric` (words), `discrepancy(measured, simulated, profile)`
+  and `heldout(...)` -> (before, after) on files (or regions) the fit did not see.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from .. import significance
+
+
+def quiet_nanmean(values, axis=0):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmean(values, axis=axis)
+
+
+def effects_replaced(profile, **changes):
+    """The profile with some `SensorEffects` fields replaced."""
+    from ... import profile as _profile
+
+    return _profile.replace(profile, effects=_profile.replace(profile.effects, **changes))
+
+
+def as_profile_dtype(profile, values):
+    import jax.numpy as jnp
+
+    return jnp.asarray(values, profile.effects.black_pedestal.dtype)
+
+
+def span(profile) -> np.ndarray:
+    """(4,) WhiteLevel - BlackLevel in DN."""
+    return float(profile.white_level) - np.asarray(profile.black_level, np.float64)
+
+
+def per_colour(profile, values) -> np.ndarray:
+    """Average over the CFA positions of one colour (the two greens of a Bayer tile).
+
+    Lens and colour shading is a property of the optics and the colour filter, so both green
+    positions share one fall-off. Fitting them apart lets the noise of two estimates become a
+    radial Gr/Gb gain difference in the extended profile, which the next round then "finds" as
+    green imbalance; a Gr/Gb gain mismatch is `green_imbalance`'s parameter, not shading's.
+    """
+    cfa = np.asarray(profile.cfa_pattern)
+    values = np.asarray(values, np.float64)
+    return np.array([values[cfa == cfa[p]].mean() for p in range(len(values))])
+
+
+class Cause:
+    """Base class of the registered causes (see the module docstring for the contract)."""
+
+    name: str = ""
+    statistic: str = ""
+    metric: str = ""
+    floor: float = 0.0
+    tolerance: float = 0.0
+    key: str = ""                 # file_statistics key of the per-file vector (default `vectors`)
+    extensible: bool = True       # has an extension (fit/apply); else significant = unexplained
+    needs_outliers: bool = False  # its statistic needs stats.outliers on simulated files
+
+    # -- what it measures
+    def vectors(self, files: list, profile) -> np.ndarray:
+        """(n_files, k) statistic of each file."""
+        return np.stack([np.asarray(f[self.key], np.float64) for f in files])
+
+    def mean_difference(self, measured, simulated, profile) -> np.ndarray:
+        """measured - simulated mean of the statistic (NaN components -> 0)."""
+        return np.nan_to_num(quiet_nanmean(self.vectors(measured, profile))
+                             - quiet_nanmean(self.vectors(simulated, profile)))
+
+    # -- how it is tested
+    def test(self, measured, simulated, profile, *, n_permutations: int = 2000, seed: int = 0) -> dict:
+        """A finding: cause, score, p, magnitude (in the statistic's units), statistic,
+        evidence (words), difference (per component)."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            m, s = self.vectors(measured, profile), self.vectors(simulated, profile)
+            test = significance.max_t_permutation(m, s, floor=self.floor, n_permutations=n_permutations,
+                                                  seed=seed)
+        finite = np.isfinite(test["difference"])
+        magnitude = float(np.nanmax(np.abs(test["difference"]))) if np.any(finite) else 0.0
+        evidence = (f"measured - simulated mean = {np.array2string(test['difference'], precision=5)}; "
+                    f"max |t| = {test['score']:.2f}, permutation p = {test['p']:.4g}")
+        return {"cause": self.name, "score": test["score"], "p": test["p"], "magnitude": magnitude,
+                "statistic": self.statistic, "evidence": evidence,
+                "difference": np.nan_to_num(test["difference"]).tolist()}
+
+    def is_significant(self, finding: dict, threshold: float) -> bool:
+        return bool(finding["p"] < threshold and finding["magnitude"] >= self.tolerance)
+
+    # -- how its extension is fitted and applied
+    def fit(self, measured, simulated, profile, *, seed: int = 0) -> dict:
+        raise NotImplementedError(f"{self.name} has no extension")
+
+    def apply(self, profile, params: dict):
+        raise NotImplementedError(f"{self.name} has no extension")
+
+    # -- how the extension is validated
+    def discrepancy(self, measured, simulated, profile, *, seed: int = 0) -> float:
+        """How far simulated files are from measured ones in this statistic (lower is better):
+        the RMS of the mean difference."""
+        return float(np.sqrt(np.mean(self.mean_difference(measured, simulated, profile) ** 2)))
+
+    def heldout(self, fit_files, held_files, simulated, profile, simulate_stats, *, seed: int = 0):
+        """(before, after) discrepancy on `held_files` of the extension fitted on `fit_files`.
+        `simulate_stats(profile, cause)` re-simulates the same scenes and draws with another profile."""
+        params = self.fit(fit_files, simulated, profile, seed=seed)
+        resimulated = simulate_stats(self.apply(profile, params), self.name)
+        return (self.discrepancy(held_files, simulated, profile, seed=seed),
+                self.discrepancy(held_files, resimulated, profile, seed=seed))

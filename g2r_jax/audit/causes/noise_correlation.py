@@ -1,0 +1,22 @@
+"""`noise_correlation`: the noise is not spatially white (denoising, compression, demosaicing).
+
+Measures log of robust var(lag-2 difference) / var(lag-1 difference) in flat regions
+(`stats.noise_correlation`; 0 for white noise). No extension yet: a significant difference is
+reported as unexplained.
+"""
+
+from __future__ import annotations
+
+from .base import Cause
+
+
+class NoiseCorrelation(Cause):
+    name = "noise_correlation"
+    statistic = "log ratio of lag-2 to lag-1 difference variance in flat regions (1 for white noise)"
+    metric = ""
+    key = "noise_corr"
+    floor, tolerance = 0.005, 0.05
+    extensible = False
+
+
+CAUSE = NoiseCorrelation()

@@ -1,0 +1,29 @@
+"""`white_level`: the sensor saturates below WhiteLevel (early clipping).
+
+Measures the level of the saturation spike above the dark floor (`stats.clipping_level`),
+fraction of range; extension: `SensorEffects.clip_level`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Cause, as_profile_dtype, effects_replaced
+
+
+class WhiteLevel(Cause):
+    name = "white_level"
+    statistic = "saturation spike level above the dark floor, fraction of range, per CFA position"
+    metric = "rms difference of the clipping level (fraction of range)"
+    key = "clip"
+    floor, tolerance = 3e-4, 3e-3
+
+    def fit(self, measured, simulated, profile, *, seed=0):
+        level = float(profile.effects.clip_level) + float(np.median(self.mean_difference(measured, simulated, profile)))
+        return {"clip_level": float(min(level, 1.0))}
+
+    def apply(self, profile, params):
+        return effects_replaced(profile, clip_level=as_profile_dtype(profile, params["clip_level"]))
+
+
+CAUSE = WhiteLevel()
