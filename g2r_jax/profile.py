@@ -22,6 +22,7 @@ from jaxtyping import Array, Float, Int
 from . import illuminants as _illuminants
 from . import sensor as _sensor
 from .dng import DngColourModel
+from .spectral import model as _spectral_model
 
 SCHEMA_NAME = "g2r_jax.sensor_profile"
 SCHEMA_VERSION = 1
@@ -61,6 +62,7 @@ class SensorProfile(eqx.Module):
     noise: _sensor.NoiseModel
     effects: _sensor.SensorEffects
     info: ProfileInfo = eqx.field(static=True, default=ProfileInfo())
+    spectral: Any = None                   # optional g2r_jax.spectral.SpectralModel (sensitivities, lamps)
 
     @property
     def cfa_string(self) -> str:
@@ -141,6 +143,7 @@ def profile_to_dict(profile: SensorProfile) -> dict:
             "column_noise_std": float(effects.column_noise_std),
         },
         "opcode_lists": {name: data for name, data in info.opcode_lists},
+        **({} if profile.spectral is None else {"spectral": _spectral_model.spectral_to_dict(profile.spectral)}),
     }
 
 
@@ -268,10 +271,13 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
         calibration_illuminants=tuple(int(c) for c in codes),
         provenance=str(document.get("provenance", "")),
         opcode_lists=tuple(sorted((str(k), str(v)) for k, v in opcode_lists.items())))
+    spectral_doc = r.get(document, "spectral", "spectral", optional=True)
+    spectral = None if spectral_doc is None else _spectral_model.spectral_from_dict(spectral_doc, r.fail, dtype)
     return SensorProfile(
         cfa_pattern=jnp.asarray(cfa, jnp.int32), black_level=as_j(black), white_level=as_j(white),
         baseline_exposure=as_j(float(document.get("baseline_exposure", 0.0))), colour=colour,
-        illuminants=illuminant_model, exposure=exposure, noise=noise, effects=effects, info=info)
+        illuminants=illuminant_model, exposure=exposure, noise=noise, effects=effects, info=info,
+        spectral=spectral)
 
 
 def shipped_profiles() -> list[str]:

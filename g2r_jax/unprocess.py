@@ -88,11 +88,53 @@ def mosaic_camera_rgb(linear, srgb_to_wb_camera, gains, cfa_pattern, highlight_s
 METADATA_KEYS = ("neutral", "xy", "cct", "iso", "exposure_gain", "noise_shot", "noise_read", "converged")
 
 
-def sample_conditions(key, profile, *, neutral=None, iso=None, exposure_gain=None, recipe: str = "dng"):
+def matrix_conditions(neutral, profile, recipe: str = "dng"):
+    """The matrix colour stage, steps 3-4: the DNG white point of the neutral, its CCT, and the
+    inverse DNG colour transform for that white (or the published approximation)."""
+    # 3. Its white point, by the DNG neutral -> xy fixed point, and its CCT.
+    xy, converged = _dng.camera_neutral_to_xy(neutral, profile.colour, throw=False)
+    cct = _colour.xy_to_CCT(xy)
+
+    # 4. Colour space transform: linear sRGB -> white-balanced camera RGB for that white.
+    if recipe == "published":
+        srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera_published(cct, profile.colour)
+    else:
+        srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera(xy, neutral, profile.colour)
+    return {"neutral": neutral, "xy": xy, "cct": cct, "converged": converged, "srgb_to_wb_camera": srgb_to_wb_camera}
+
+
+def matrix_mosaic(linear, conditions, cfa_pattern, highlight_safe: bool):
+    """The matrix colour stage, step 5: one 3x3 and the neutral's gains, mosaicked."""
+    return mosaic_camera_rgb(linear, conditions["srgb_to_wb_camera"], conditions["gains"], cfa_pattern, highlight_safe)
+
+
+COLOUR_STAGES = {"matrix": (matrix_conditions, matrix_mosaic)}
+
+
+def colour_stage(colour: str):
+    """(conditions, mosaic) functions of a colour model: 'matrix' (the DNG matrices, default),
+    'spectral' or 'spectral-jakob2019' (`g2r_jax.spectral.stage`, siblings with the same shape)."""
+    if colour in COLOUR_STAGES:
+        return COLOUR_STAGES[colour]
+    from .spectral.stage import STAGES
+
+    if colour in STAGES:
+        return STAGES[colour]
+    raise ValueError(f"unknown colour model {colour!r}; expected one of matrix, {', '.join(STAGES)}")
+
+
+def _metadata(conditions, colour: str):
+    extra = () if colour == "matrix" else ("illuminant_family", "illuminant_spectrum")
+    return {k: conditions[k] for k in METADATA_KEYS + extra}
+
+
+def sample_conditions(key, profile, *, neutral=None, iso=None, exposure_gain=None, recipe: str = "dng",
+                      colour: str = "matrix"):
     """Steps 2-4 of `unprocess` and its other per-image draws, without touching pixels.
 
-    **Returns:** a dict of small arrays: the metadata of `unprocess` (`METADATA_KEYS`) plus
-    `srgb_to_wb_camera` (3, 3), `gains` (3,) and the keys of the noise and readout draws.
+    **Returns:** a dict of small arrays: the metadata of `unprocess` (`METADATA_KEYS`) plus what
+    the colour stage's mosaic needs (`srgb_to_wb_camera` (3, 3)...), `gains` (3,) and the keys of
+    the noise and readout draws.
     """
     k_illuminant, k_exposure, k_iso, k_noise, k_readout = jax.random.split(key, 5)
     dtype = jnp.float32
@@ -104,29 +146,22 @@ def sample_conditions(key, profile, *, neutral=None, iso=None, exposure_gain=Non
     neutral = jnp.asarray(neutral, dtype)
     neutral = neutral / neutral[1]
 
-    # 3. Its white point, by the DNG neutral -> xy fixed point, and its CCT.
-    xy, converged = _dng.camera_neutral_to_xy(neutral, profile.colour, throw=False)
-    cct = _colour.xy_to_CCT(xy)
-
-    # 4. Colour space transform: linear sRGB -> white-balanced camera RGB for that white.
-    if recipe == "published":
-        srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera_published(cct, profile.colour)
-    else:
-        srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera(xy, neutral, profile.colour)
+    # 3-4. The colour stage: white point, CCT and the transform to white-balanced camera RGB.
+    colour_conditions = colour_stage(colour)[0](neutral, profile, recipe)
+    neutral = colour_conditions["neutral"]
 
     if exposure_gain is None:
         exposure_gain = _sensor.sample_exposure_gain(k_exposure, profile.exposure)
     iso = _sensor.sample_iso(k_iso, profile.noise) if iso is None else jnp.asarray(iso, dtype)
     shot, read = _sensor.noise_parameters(iso, profile.noise)
-    return {"neutral": neutral, "xy": xy, "cct": cct, "iso": iso,
+    return {**colour_conditions, "iso": iso,
             "exposure_gain": jnp.asarray(exposure_gain, dtype), "noise_shot": shot, "noise_read": read,
-            "converged": converged, "srgb_to_wb_camera": srgb_to_wb_camera,
             "gains": neutral / jnp.max(neutral), "noise_key": k_noise, "readout_key": k_readout}
 
 
 def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: bool = True,
                   effects: bool = True, highlight_safe: bool = True, recipe: str = "dng",
-                  quantize: bool = True, lens_gain=None):
+                  quantize: bool = True, lens_gain=None, colour: str = "matrix"):
     """Steps 1 and 5-7 of `unprocess`: the pixels, for `conditions` from `sample_conditions`.
 
     Every stage is element-wise in the (H, W) mosaic layout, so under jit XLA fuses them into one
@@ -137,8 +172,7 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
 
     # 5. Un-white-balance and mosaic in one step, scaled so that white reaches 1 in the
     #    strongest channel, then a global exposure gain.
-    mosaic = mosaic_camera_rgb(linear, conditions["srgb_to_wb_camera"], conditions["gains"],
-                               profile.cfa_pattern, highlight_safe)
+    mosaic = colour_stage(colour)[1](linear, conditions, profile.cfa_pattern, highlight_safe)
     mosaic = mosaic * conditions["exposure_gain"]
 
     # 6. Optics and sensor: shading and channel gains, noise at the drawn ISO, readout effects.
@@ -165,7 +199,8 @@ def _check_image(image, ndim: int = 3):
 
 def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=None,
               exposure_gain=None, noise: bool = True, effects: bool = True,
-              highlight_safe: bool = True, recipe: str = "dng", quantize: bool = True, lens_gain=None):
+              highlight_safe: bool = True, recipe: str = "dng", quantize: bool = True, lens_gain=None,
+              colour: str = "matrix"):
     """Turn one CG image into a RAW mosaic of the profiled camera.
 
     **Arguments:**
@@ -179,6 +214,10 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     - `highlight_safe`: ease un-white-balance gains to 1 for near-white pixels.
     - `recipe`: 'dng' (exact DNG colour model) or 'published' (the Graphics2RAW code's
       approximation; see the README).
+    - `colour`: 'matrix' (the DNG matrices of the profile), 'spectral' (the profile's spectral
+      sensitivities, the neutral as a light spectrum, sRGB upsampled to reflectance by three
+      basis spectra: one 3x3 per image) or 'spectral-jakob2019' (Jakob-Hanika upsampling);
+      see `g2r_jax.spectral`. Spectral metadata adds `illuminant_family`, `illuminant_spectrum`.
     - `quantize`: return uint16 DN (True) or unrounded float32 DN (False).
     - `lens_gain`: optional (4, H/2, W/2) gain a DNG renderer applies from the camera's
       lens-shading opcodes (`g2r_jax.lens_shading.shading_gain_planes`); the raw is divided by
@@ -191,15 +230,16 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     _check_image(image)
     # Steps 2-4: illuminant, white point, colour transform (and the other per-image draws).
     conditions = sample_conditions(key, profile, neutral=neutral, iso=iso, exposure_gain=exposure_gain,
-                                   recipe=recipe)
+                                   recipe=recipe, colour=colour)
     # Steps 1, 5-7: decode, un-white-balance and mosaic, sensor, levels.
     mosaic = render_mosaic(image, conditions, profile, transfer=transfer, noise=noise, effects=effects,
-                           highlight_safe=highlight_safe, recipe=recipe, quantize=quantize, lens_gain=lens_gain)
-    return mosaic, {k: conditions[k] for k in METADATA_KEYS}
+                           highlight_safe=highlight_safe, recipe=recipe, quantize=quantize, lens_gain=lens_gain,
+                           colour=colour)
+    return mosaic, _metadata(conditions, colour)
 
 
 def unprocess_batch(keys, images, profile, *, neutral=None, iso=None, exposure_gain=None,
-                    recipe: str = "dng", **render_options):
+                    recipe: str = "dng", colour: str = "matrix", **render_options):
     """`unprocess` over a batch (B, H, W, 3) with keys (B, ...), same results image by image
     whatever the batch size or an image's place in it.
 
@@ -213,12 +253,13 @@ def unprocess_batch(keys, images, profile, *, neutral=None, iso=None, exposure_g
 
     def conditions_of(args):
         key, row = args
-        return sample_conditions(key, profile, neutral=row, iso=iso, exposure_gain=exposure_gain, recipe=recipe)
+        return sample_conditions(key, profile, neutral=row, iso=iso, exposure_gain=exposure_gain, recipe=recipe,
+                                 colour=colour)
 
     conditions = jax.lax.map(conditions_of, (keys, neutral))
-    mosaics = jax.vmap(lambda image, c: render_mosaic(image, c, profile, recipe=recipe, **render_options))(
-        images, conditions)
-    return mosaics, {k: conditions[k] for k in METADATA_KEYS}
+    mosaics = jax.vmap(lambda image, c: render_mosaic(image, c, profile, recipe=recipe, colour=colour,
+                                                      **render_options))(images, conditions)
+    return mosaics, _metadata(conditions, colour)
 
 
 def image_key(seed: int, index: int):
