@@ -289,7 +289,7 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
     if progress:
         progress.close()
     ordered = [records[i] for i in sorted(records)]
-    if write_manifest:
+    if write_manifest and ordered:   # a run that wrote nothing leaves no (empty) manifest
         write_manifest_file(out_dir, ordered)
     return ConvertResult(records=ordered, errors=errors)
 

@@ -8,7 +8,7 @@ per-shot matrix), the CCT-interpolated pair that best explains them is fitted wi
 
 from __future__ import annotations
 
-import warnings
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -45,6 +45,50 @@ def as_shot_neutral(info: DngInfo) -> np.ndarray | None:
         model = colour_model_from_info(info, np.float64)
         return np.asarray(_dng.xy_to_camera_neutral(jnp.asarray(info.as_shot_white_xy, jnp.float64), model))
     return None
+
+
+def check_file_colour(info: DngInfo) -> DngInfo:
+    """Per-file check before any folder-wide fit: this file's colour model and the white point of
+    its as-shot neutral (the DNG fixed point, spec 'Colour') must solve to a chromaticity. A solver
+    failure or a non-finite result raises DngError naming this file, so one bad file never reaches
+    the solvers shared by the folder (`fit_color_matrix_pair`)."""
+    try:
+        with enable_x64():
+            model = colour_model_from_info(info, np.float64)
+            neutral = as_shot_neutral(info)
+            if neutral is None:
+                return info
+            xy, _ = _dng.camera_neutral_to_xy(jnp.asarray(neutral), model)
+            xy = np.asarray(xy, np.float64)
+            matrix = np.asarray(_dng.matrix_XYZ_to_camera(jnp.asarray(xy), model))
+    except DngError:
+        raise
+    except Exception as error:  # noqa: BLE001 - solver/XLA errors become one line about this file
+        raise DngError(info.path, "AsShotNeutral with the colour matrices: the white-point solver fails "
+                                  f"({type(error).__name__})") from error
+    if not (np.all(np.isfinite(xy)) and 0 < xy[0] < 1 and 0 < xy[1] < 1 and xy.sum() < 1
+            and np.all(np.isfinite(matrix))):
+        raise DngError(info.path, "AsShotNeutral with the colour matrices: no valid white point")
+    return info
+
+
+def levels_from_infos(infos) -> tuple[np.ndarray, float, str | None]:
+    """The levels a profile holds: the median black level per CFA tile position and the median
+    white level over the files (per-file levels are normal for cameras that measure black from
+    masked pixels per shot). Returns (black (4,), white, note) where `note` is one line when the
+    files' levels differ, else None."""
+    blacks = np.stack([np.resize(np.asarray(i.black_level, np.float64).reshape(-1), 4) for i in infos])
+    whites = np.array([float(i.white_level) for i in infos])
+    notes = []
+    if np.ptp(blacks, axis=0).max() > 0:
+        low, high = np.argmin(blacks.mean(axis=1)), np.argmax(blacks.mean(axis=1))
+        notes.append(f"black levels differ between files ({blacks.min():g} to {blacks.max():g} DN; lowest in "
+                     f"{Path(infos[low].path).name}, highest in {Path(infos[high].path).name})")
+    if np.ptp(whites) > 0:
+        notes.append(f"white levels differ between files ({whites.min():g} in {Path(infos[int(np.argmin(whites))].path).name}"
+                     f" to {whites.max():g} in {Path(infos[int(np.argmax(whites))].path).name})")
+    note = ("; ".join(notes) + "; the profile holds the median of each") if notes else None
+    return np.median(blacks, axis=0), float(np.median(whites)), note
 
 
 def _same_matrices(infos) -> bool:
@@ -180,13 +224,10 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
                        calibration_illuminants=tuple(int(c) for c in reference.calibration_illuminants[:2]),
                        provenance=provenance or f"fitted by g2r_jax from {len(infos)} DNG file(s)",
                        opcode_lists=opcodes)
-    black = np.asarray(reference.black_level, np.float64).reshape(-1)
-    black = np.resize(black, 4)
+    black, white, _ = levels_from_infos(infos)   # the CLI reports the note
     baseline = float(np.median([i.baseline_exposure for i in infos]))
-    if len({float(i.white_level) for i in infos}) > 1:
-        warnings.warn(f"white levels differ between files; using {reference.white_level} from {reference.path}")
     return SensorProfile(
         cfa_pattern=jnp.asarray(cfa, jnp.int32), black_level=jnp.asarray(black, dtype),
-        white_level=jnp.asarray(float(reference.white_level), dtype),
+        white_level=jnp.asarray(white, dtype),
         baseline_exposure=jnp.asarray(baseline, dtype), colour=colour_model, illuminants=illuminants,
         exposure=_sensor.fixed_exposure(dtype), noise=noise, effects=_sensor.no_effects(dtype), info=info)

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from . import _x64
 from . import illuminants as _illuminants
 from . import sensor as _sensor
 from .dng import DngColourModel
@@ -26,7 +27,17 @@ from .spectral import model as _spectral_model
 
 SCHEMA_NAME = "g2r_jax.sensor_profile"
 SCHEMA_VERSION = 1
-SHIPPED_PROFILES_DIR = Path(__file__).resolve().parent.parent / "profiles"
+
+
+def _shipped_profiles_dir() -> Path:
+    """Where the shipped profiles are: `g2r_jax/profiles/` in an installed wheel (pyproject maps
+    the repository's top-level `profiles/` there), else the checkout's top-level `profiles/`."""
+    package = Path(__file__).resolve().parent
+    installed = package / "profiles"
+    return installed if installed.is_dir() else package.parent / "profiles"
+
+
+SHIPPED_PROFILES_DIR = _shipped_profiles_dir()
 CFA_LETTERS = "RGB"
 _EFFECT_DEFAULTS = {"black_pedestal": [0.0] * 4, "clip_level": 1.0, "channel_gain": [1.0] * 4,
                     "shading": [[0.0, 0.0]] * 4, "row_noise_std": 0.0, "column_noise_std": 0.0}
@@ -188,6 +199,9 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
     version = document.get("version")
     if version != SCHEMA_VERSION:
         r.fail("version", f"unsupported version {version!r} (this g2r_jax reads version {SCHEMA_VERSION})")
+    from .profile_checks import check_document
+
+    check_document(document, source)   # types and physical ranges (the same check before saving)
     as_j = lambda a: jnp.asarray(a, dtype)
 
     colour_doc = r.get(document, "colour", "colour")
@@ -306,10 +320,14 @@ def load_profile(name_or_path, dtype=np.float32) -> SensorProfile:
 
 
 def save_profile(profile: SensorProfile, path) -> None:
-    """Write a profile as JSON, atomically (temporary file, then rename)."""
+    """Write a profile as JSON, atomically (temporary file, then rename), after the loader's own
+    validation: a profile `load_profile` would refuse is never written (ProfileError instead)."""
     from .io.atomic import atomic_write_bytes
 
-    text = json.dumps(profile_to_dict(profile), indent=1, allow_nan=False)
+    document = profile_to_dict(profile)
+    with _x64.enable_x64():
+        profile_from_dict(document, str(path), np.float64)   # raises ProfileError naming the field
+    text = json.dumps(document, indent=1, allow_nan=False)
     atomic_write_bytes(Path(path), (text + "\n").encode())
 
 

@@ -18,7 +18,7 @@ from .vocabulary import CAUSES, UNEXPLAINED
 
 def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, seed: int = 0,
              alpha: float = 0.01, folds: int = 3, n_permutations: int = 2000, progress=None,
-             causes=None) -> dict:
+             causes=None, on_error=None) -> dict:
     """Compare measured DNGs with the profile's simulation; name, fit and validate causes.
 
     **Arguments:**
@@ -36,13 +36,14 @@ def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, 
     **Returns:** the report dict (REPORT.json's content): `findings` (one per tested statistic,
     significant first, by score), `unexplained`, `extended_profile` (the SensorProfile with every
     kept extension, under key "profile" - not JSON; `report.to_json` drops it) and run details.
-    Raises DngError naming a file that cannot be used.
+    Raises DngError naming a file that cannot be used; with `on_error`, such a file is reported
+    to `on_error(line)` and left out instead (DngError only when no usable file is left).
     """
     started = time.perf_counter()
     say = progress or (lambda message: None)
     registry = tuple(REGISTRY if causes is None else causes)
     by_name = {c.name: c for c in registry}
-    files = loading.load_measured(measured)
+    files = loading.load_measured(measured, on_error=on_error)
     shapes = {m.shape for m, _ in files}
     if len(shapes) > 1:
         from ..io.dng_info import DngError

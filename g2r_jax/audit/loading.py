@@ -23,25 +23,51 @@ def measured_paths(folder) -> list[Path]:
     return paths
 
 
-def load_measured(items) -> list[tuple[np.ndarray, DngInfo]]:
+def load_measured(items, *, on_error=None) -> list[tuple[np.ndarray, DngInfo]]:
     """(mosaic, DngInfo) for each item: a path to a DNG, or an in-memory (mosaic, DngInfo) pair.
 
-    Raises DngError naming the file for anything unreadable, non-Bayer, or an odd-sized mosaic.
+    Raises DngError naming the file for anything unreadable, non-Bayer, undecodable (e.g. VC-5 or
+    JPEG XL raw data), or a too-small mosaic. With `on_error`, each such file is reported as one
+    line to `on_error(line)` and skipped, and so are files whose size differs from the most common
+    one; DngError then only when no file is left.
     """
     from ..io.dng_read import read_dng_info, read_dng_pixels, require_bayer_cfa
 
-    out = []
+    out, refused = [], []
     for item in items:
-        if isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[1], DngInfo):
-            mosaic, info = np.asarray(item[0]), item[1]
-        else:
-            info = require_bayer_cfa(read_dng_info(item))
-            mosaic = read_dng_pixels(item, info)
-        if mosaic.ndim != 2 or mosaic.shape[0] < 16 or mosaic.shape[1] < 16:
-            raise DngError(info.path, f"mosaic of shape {mosaic.shape} is too small to audit")
+        try:
+            if isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[1], DngInfo):
+                mosaic, info = np.asarray(item[0]), item[1]
+            else:
+                info = require_bayer_cfa(read_dng_info(item))
+                mosaic = read_dng_pixels(item, info)
+            if mosaic.ndim != 2 or mosaic.shape[0] < 16 or mosaic.shape[1] < 16:
+                raise DngError(info.path, f"mosaic of shape {mosaic.shape} is too small to audit")
+        except DngError as error:
+            if on_error is None:
+                raise
+            refused.append(error)
+            continue
         if mosaic.shape[0] % 2 or mosaic.shape[1] % 2:
             mosaic = mosaic[: mosaic.shape[0] // 2 * 2, : mosaic.shape[1] // 2 * 2]
         out.append((mosaic, info))
+    if on_error is not None:
+        if not out and len(refused) == 1:
+            raise refused[0]
+        for error in refused:
+            on_error(str(error))
+        shapes = [m.shape for m, _ in out]
+        if len(set(shapes)) > 1:
+            common = max(set(shapes), key=shapes.count)
+            for mosaic, info in out:
+                if mosaic.shape != common:
+                    on_error(f"{info.path}: mosaic {mosaic.shape[1]}x{mosaic.shape[0]} differs from the "
+                             f"{shapes.count(common)} file(s) of {common[1]}x{common[0]}; audit one size at a time")
+            out = [(m, i) for m, i in out if m.shape == common]
+        if not out:
+            first = items[0] if items else "."
+            folder = Path(str(first[1].path if isinstance(first, (tuple, list)) else first)).parent
+            raise DngError(folder, f"no usable measured DNG files ({len(refused)} refused)")
     return out
 
 

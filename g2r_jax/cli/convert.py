@@ -15,8 +15,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="g2r-convert", description=__doc__)
     parser.add_argument("inputs", nargs="*", type=Path, help="image files or folders")
     parser.add_argument("--profile", help="profile JSON path or shipped profile name")
-    parser.add_argument("-o", "--output", required=True, type=Path, help="output folder")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (same seed, same bytes)")
+    parser.add_argument("-o", "--output", type=Path, help="output folder (created if missing; needed unless --list-profiles)")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="random seed of illuminants, exposure and noise (default 0); each file's key derives "
+                             "from the seed and its name, so the same seed gives the same bytes")
     parser.add_argument("--iso", type=float, help="fixed ISO instead of one drawn per image")
     parser.add_argument("--no-noise", action="store_true", help="do not add sensor noise")
     parser.add_argument("--no-effects", action="store_true", help="do not add the profile's sensor effects")
@@ -26,14 +28,18 @@ def build_parser() -> argparse.ArgumentParser:
                         help="decoding of input values (auto: sRGB for PNG/JPEG/TIFF, linear for EXR)")
     parser.add_argument("--recipe", choices=["dng", "published"], default="dng",
                         help="colour model: exact DNG inverse (default) or the published approximation")
-    parser.add_argument("--batch-size", type=int, default=4)
+    parser.add_argument("--batch-size", type=int, default=4,
+                        help="images of one size converted together in one compiled call (default 4); "
+                             "larger uses more memory, the output bytes do not change")
     parser.add_argument("--workers", type=int, default=2, help="decode/encode threads")
     parser.add_argument("--crop-odd", action="store_true", help="drop the last row/column of odd-sized images")
     parser.add_argument("--lens-shading", action="store_true",
                         help="apply the inverse of the camera's lens shading (profile OpcodeList2) and write the opcode")
-    parser.add_argument("--engine", choices=["local", "ray"], default="local")
+    parser.add_argument("--engine", choices=["local", "ray"], default="local",
+                        help="local: this machine (default); ray: spread the files over a Ray cluster "
+                             "(pip install g2r_jax[ray]); same bytes either way")
     parser.add_argument("--example", action="store_true", help="convert the built-in example scene")
-    parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--list-profiles", action="store_true", help="list shipped profiles and exit")
     add_debug_flag(parser)
     return parser
@@ -76,6 +82,8 @@ def body(args) -> int:
     if args.list_profiles:
         print("\n".join(profile_module.shipped_profiles()))
         return 0
+    if args.output is None:
+        raise ValueError("-o/--output OUT_DIR is required")
     if args.example:
         inputs = [EXAMPLE_SCENE] + list(args.inputs)
         profile_name = args.profile or DEFAULT_EXAMPLE_PROFILE
@@ -85,7 +93,10 @@ def body(args) -> int:
         if not args.profile:
             raise ValueError("--profile is required (a JSON path or a shipped name; see --list-profiles)")
         profile_name = args.profile
-    profile = profile_module.load_profile(profile_name)
+    profile = profile_module.load_profile(profile_name)   # validated before any input is read
+    if args.example:
+        print(f"g2r-convert: example scene with profile {profile_name!r}"
+              f"{' (the default; --profile NAME picks another)' if not args.profile else ''}", file=sys.stderr)
     errors = []
     files = []
     for item in inputs if args.example else args.inputs:
@@ -112,8 +123,9 @@ def body(args) -> int:
     else:
         result = convert_files(files, profile, args.output, neutrals=neutrals, options=options, on_error=report)
     failed = len(errors) + len(result.errors)
+    manifest = args.output / "manifest.jsonl"
     print(f"g2r-convert: {len(result.records)} DNG(s) written to {args.output} with profile "
-          f"{profile.info.name!r}; {failed} failed; manifest: {args.output / 'manifest.jsonl'}")
+          f"{profile.info.name!r}; {failed} failed; manifest: {manifest if result.records else 'none (nothing written)'}")
     return 1 if failed else 0
 
 

@@ -7,7 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .common import add_debug_flag, run_command
+from .common import add_debug_flag, one_line, run_command
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -52,21 +52,31 @@ def _run(args) -> int:
     if args.folds < 2:
         raise ValueError(f"--folds {args.folds}: need at least 2")
     report_path = Path(args.report)
-    if not report_path.parent.is_dir() and str(report_path.parent):
-        raise ValueError(f"{report_path}: output folder does not exist")
     _enable_compilation_cache()
     profile = load_profile(args.profile)
     paths = loading.measured_paths(args.measured)
+    try:
+        report_path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise ValueError(f"{report_path}: cannot create its folder ({error.strerror})") from None
     say = None if args.quiet else (lambda message: print(f"g2r-diagnose: {message}", file=sys.stderr))
+    failed = []
+
+    def report_bad_file(line):
+        failed.append(line)
+        print(f"g2r-diagnose: error: {one_line(line)}", file=sys.stderr)
+
     result = diagnose(profile, paths, scenes=args.scenes, seed=args.seed, alpha=args.alpha,
-                      folds=args.folds, progress=say)
+                      folds=args.folds, progress=say, on_error=report_bad_file)
     if args.extended_profile:
         save_profile(result["profile"], args.extended_profile)
         result["extended_profile"] = str(args.extended_profile)
     report.write_json(result, report_path)
     report.write_html(result, Path(args.html) if args.html else report_path.parent / (report_path.stem + "_html"))
     print(report.summary(result))
-    return 0
+    if failed:
+        print(f"g2r-diagnose: {len(failed)} measured file(s) left out (see above)", file=sys.stderr)
+    return 1 if failed else 0
 
 
 def main(argv=None) -> int:

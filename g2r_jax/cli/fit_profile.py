@@ -6,7 +6,18 @@ import argparse
 import sys
 from pathlib import Path
 
-from .common import add_debug_flag, run_command
+from .common import add_debug_flag, error_message, one_line, run_command
+
+
+def validate_profile(profile, path) -> None:
+    """The loader's validation of `profile` as it would be written to `path` (ProfileError)."""
+    import numpy as np
+
+    from .._x64 import enable_x64
+    from ..profile import profile_from_dict, profile_to_dict
+
+    with enable_x64():
+        profile_from_dict(profile_to_dict(profile), str(path), np.float64)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -22,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--noise-table", type=Path,
                         help="noise calibration CSV (iso,cfa_channel_index,beta1_shot,beta2_read; DN incl. black)")
     parser.add_argument("--name", help="profile name (default: the output file's stem)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the mixture model's initialisation (default 0)")
     add_debug_flag(parser)
     return parser
 
@@ -93,7 +104,7 @@ def _one_camera(infos, failures):
 def body(args) -> int:
     import numpy as np
 
-    from ..fit import fit_profile
+    from ..fit import check_file_colour, fit_profile, levels_from_infos
     from ..illuminants import neutral_to_chromaticity
     from ..io.dng_read import read_dng_info, require_bayer_cfa, require_colour_tags
     from ..io.images import list_inputs
@@ -118,13 +129,14 @@ def body(args) -> int:
             except Exception as error:  # noqa: BLE001
                 failures.append(str(error))
         for path in paths:
-            try:
-                info = require_bayer_cfa(require_colour_tags(read_dng_info(path)))
+            try:   # every check of one file's tags happens here, before any folder-wide solver
+                info = check_file_colour(require_bayer_cfa(require_colour_tags(read_dng_info(path))))
                 for warning in info.warnings:
-                    print(f"g2r-fit-profile: warning: {path}: {warning}", file=sys.stderr)
+                    print(f"g2r-fit-profile: warning: {path}: {one_line(warning)}", file=sys.stderr)
                 infos.append(info)
             except Exception as error:  # noqa: BLE001 - report and go on
-                failures.append(str(error))
+                failures.append(error_message(error) if str(path) in str(error) else
+                                one_line(f"{path}: {error_message(error)}"))
         infos = _one_camera(infos, failures)
         chromaticities = None
         source = f"{len(infos)} DNG file(s) from {', '.join(str(d) for d in args.dng_dirs)}"
@@ -137,9 +149,36 @@ def body(args) -> int:
         noise = read_noise_table(args.noise_table, np.resize(np.asarray(infos[0].black_level, float), 4),
                                  infos[0].white_level)
         source += f"; noise from {args.noise_table.name}"
-    profile = fit_profile(infos, name=args.name or args.output.stem, illuminant_model=args.illuminant_model,
-                          noise=noise, chromaticities=chromaticities, provenance=f"g2r-fit-profile: {source}",
-                          seed=args.seed)
+    def attempt(subset, chromaticities_subset):
+        """Fit and validate with the loader's own checks (nothing is written yet)."""
+        fitted = fit_profile(subset, name=args.name or args.output.stem, illuminant_model=args.illuminant_model,
+                             noise=noise, chromaticities=chromaticities_subset,
+                             provenance=f"g2r-fit-profile: {source}", seed=args.seed)
+        validate_profile(fitted, args.output)
+        return fitted
+
+    try:
+        profile = attempt(infos, chromaticities)
+    except Exception as error:  # noqa: BLE001 - find the files that break the fit, drop them, refit
+        if chromaticities is not None or len(infos) < 2:
+            raise ValueError(f"no valid profile from {len(infos)} file(s): {error_message(error)}") from error
+        survivors = []
+        for info in infos:
+            try:
+                attempt([info], None)
+                survivors.append(info)
+            except Exception as single:  # noqa: BLE001
+                line = one_line(f"{info.path}: dropped, no valid profile with this file ({error_message(single)})")
+                failures.append(line)
+                print(f"g2r-fit-profile: error: {line}", file=sys.stderr)
+        if not survivors or len(survivors) == len(infos):
+            raise ValueError(f"no valid profile from {len(infos)} file(s): {error_message(error)}") from error
+        infos = survivors
+        profile = attempt(infos, None)
+    if chromaticities is None:
+        note = levels_from_infos(infos)[2]
+        if note:
+            print(f"g2r-fit-profile: note: {note}", file=sys.stderr)
     save_profile(profile, args.output)
     print(f"g2r-fit-profile: wrote {args.output} ({profile.illuminants.kind} illuminant model, "
           f"{len(infos)} file(s); {len(failures)} failed)")

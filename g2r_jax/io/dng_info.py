@@ -57,6 +57,8 @@ class DngInfo:
     warnings: list = dataclasses.field(default_factory=list)      # non-fatal problems found on read
     cfa_repeat_dim: tuple = (2, 2)            # CFARepeatPatternDim (rows, cols); () for LinearRaw
     pixel_data_problem: Optional[str] = None  # set on read when the raw pixel data is missing/short
+    compression: int = 1                      # raw IFD's Compression (TIFF 259): 1, 7, 34892, 52546, ...
+    linearization_table: Optional[np.ndarray] = None  # LinearizationTable (50712), applied by LibRaw
 
     def cfa_string(self) -> str:
         """The 2x2 pattern as letters, e.g. 'RGGB'."""
@@ -66,7 +68,12 @@ class DngInfo:
 class DngError(ValueError):
     """A DNG (or image) g2r_jax cannot use; the message names the file and the problem."""
 
+    MAX_PROBLEM = 240   # messages stay one short line, whatever a damaged file holds
+
     def __init__(self, path, problem: str):
         self.path = str(path)
+        problem = " ".join(str(problem).split())
+        if len(problem) > self.MAX_PROBLEM:
+            problem = problem[: self.MAX_PROBLEM - 3] + "..."
         self.problem = problem
         super().__init__(f"{path}: {problem}")

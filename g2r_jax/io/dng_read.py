@@ -15,13 +15,18 @@ OpcodeList*) are looked up in the raw IFD first, then IFD0; colour tags (ColorMa
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import math
+import threading
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
 
 from g2r_jax.io.dng_info import DngError, DngInfo
+from g2r_jax.io.raw_compression import undecodable_reason
+from g2r_jax.io.tag_checks import check_dng_tags
 
 __all__ = ["read_dng_info", "read_dng_pixels", "require_colour_tags", "require_bayer_cfa", "TAGS"]
 
@@ -55,6 +60,7 @@ TAGS = {
     "UniqueCameraModel": 50708,
     "CFAPlaneColor": 50710,
     "CFALayout": 50711,
+    "LinearizationTable": 50712,
     "BlackLevelRepeatDim": 50713,
     "BlackLevel": 50714,
     "BlackLevelDeltaH": 50715,
@@ -182,10 +188,20 @@ def _expand_black(path, black, repeat, deltas_h, deltas_v, samples) -> np.ndarra
     of BlackLevelDeltaV (per row) and BlackLevelDeltaH (per column) of the same parity are added.
     """
     rows, cols = repeat
-    if rows < 1 or cols < 1 or black.size != rows * cols * samples:
-        raise DngError(path, f"BlackLevel has {black.size} values, expected "
-                             f"{rows}x{cols}x{samples} (BlackLevelRepeatDim x SamplesPerPixel)")
-    grid = black.reshape(rows, cols, samples).mean(axis=2)
+    if rows < 1 or cols < 1 or rows * cols > 4096:
+        raise DngError(path, f"BlackLevelRepeatDim {rows}x{cols} is not a usable repeat pattern")
+    per_position = samples
+    if black.size != rows * cols * samples:
+        # Some phones (e.g. Samsung) write 3 values per position of a 2x2 CFA repeat (12 values for
+        # SamplesPerPixel 1). Read in the spec's row-column-sample order, they are averaged like
+        # samples, but only when they agree: differing values have no meaning for a CFA.
+        extra = black.size // (rows * cols) if black.size % (rows * cols) == 0 else 0
+        if samples != 1 or extra not in (2, 3, 4) or \
+                np.ptp(black.reshape(rows * cols, extra), axis=1).max() > 0.5:
+            raise DngError(path, f"BlackLevel has {black.size} values, expected "
+                                 f"{rows}x{cols}x{samples} (BlackLevelRepeatDim x SamplesPerPixel)")
+        per_position = extra
+    grid = black.reshape(rows, cols, per_position).mean(axis=2)
     big = np.tile(grid, (math.lcm(rows, 2) // rows, math.lcm(cols, 2) // cols))
     out = np.empty(4)
     for i in range(2):
@@ -276,8 +292,11 @@ def read_dng_info(path) -> DngInfo:
     if file_size < 8:
         raise DngError(path, f"file too short to be a DNG ({file_size} bytes)")
     try:
-        with tifffile.TiffFile(str(path)) as tif:
-            return _parse(path, tif, file_size)
+        with _library_log(path) as library_messages, tifffile.TiffFile(str(path)) as tif:
+            info = _parse(path, tif, file_size)
+        if library_messages and not info.warnings:
+            info.warnings.append(f"TIFF structure partly damaged ({_short(library_messages[0])})")
+        return check_dng_tags(info)
     except DngError:
         raise
     except tifffile.TiffFileError as exc:
@@ -288,6 +307,35 @@ def read_dng_info(path) -> DngInfo:
         raise DngError(path, f"not a TIFF/DNG file ({_short(exc)})") from exc
     except Exception as exc:  # tifffile raises many kinds on damaged files (struct.error, ...)
         raise DngError(path, f"cannot parse DNG tags, file damaged or truncated ({_short(exc)})") from exc
+
+
+class _LogCollector(logging.Handler):
+    """Collects tifffile's log records of the calling thread (they would print to stderr)."""
+
+    def __init__(self):
+        super().__init__(logging.DEBUG)
+        self.thread = threading.get_ident()
+        self.messages = []
+
+    def emit(self, record):
+        if record.thread == self.thread and record.levelno >= logging.WARNING:
+            self.messages.append(record.getMessage())
+
+
+@contextlib.contextmanager
+def _library_log(path):
+    """tifffile logs damage it skips over (e.g. '<tifffile.TiffPages @1712> invalid offset to
+    first page'); those records become (at most) one warning of ours naming the file."""
+    logger = logging.getLogger("tifffile")
+    collector = _LogCollector()
+    logger.addHandler(collector)
+    propagate = logger.propagate
+    logger.propagate = False
+    try:
+        yield collector.messages
+    finally:
+        logger.removeHandler(collector)
+        logger.propagate = propagate
 
 
 def _short(exc) -> str:
@@ -360,12 +408,23 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
         _floats(path, dh, "BlackLevelDeltaH") if dh is not None else None,
         _floats(path, dv, "BlackLevelDeltaV") if dv is not None else None,
         samples)
+    # LinearizationTable (spec ch. 4): stored values index the table; BlackLevel and WhiteLevel are
+    # in the linearised values (LibRaw applies the table when decoding, see read_dng_pixels).
+    table_tag = raw_first("LinearizationTable")
+    if table_tag is not None:
+        table = _floats(path, table_tag, "LinearizationTable")
+        if not 1 <= table.size <= 65536 or np.min(table) < 0 or np.max(table) > 65535:
+            raise DngError(path, f"LinearizationTable: {table.size} entries, values must lie in 0..65535")
+        info.linearization_table = table
     white_tag = raw_first("WhiteLevel")
     if white_tag is not None:
         whites = _floats(path, white_tag, "WhiteLevel")
         info.white_level = float(whites.max())
         if whites.size > 1 and np.ptp(whites) > 0:
-            info.warnings.append(f"WhiteLevel differs per sample {tuple(whites)}; using the largest")
+            info.warnings.append(f"WhiteLevel differs per sample ({whites.min():g} to {whites.max():g}); "
+                                 "using the largest")
+    elif table_tag is not None:  # linearised values cannot exceed the table
+        info.white_level = float(np.max(info.linearization_table))
     else:  # spec default: 2 ** BitsPerSample - 1
         info.white_level = float(2 ** info.bits_per_sample - 1)
 
@@ -468,8 +527,9 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
         if tag is not None:
             info.opcode_lists[f"OpcodeList{k}"] = _raw_bytes(tag)
 
-    # --- is the pixel data there at all?
-    problem = _check_pixel_data(raw, file_size)
+    # --- can the pixels be decoded, and is the pixel data there at all?
+    info.compression = int(raw.compression)
+    problem = undecodable_reason(info.compression) or _check_pixel_data(raw, file_size)
     if problem is not None:
         info.pixel_data_problem = problem
         info.warnings.append(problem)
