@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import re
 import threading
 from pathlib import Path
 from typing import Optional
@@ -192,12 +193,13 @@ def _expand_black(path, black, repeat, deltas_h, deltas_v, samples) -> np.ndarra
         raise DngError(path, f"BlackLevelRepeatDim {rows}x{cols} is not a usable repeat pattern")
     per_position = samples
     if black.size != rows * cols * samples:
-        # Some phones (e.g. Samsung) write 3 values per position of a 2x2 CFA repeat (12 values for
-        # SamplesPerPixel 1). Read in the spec's row-column-sample order, they are averaged like
-        # samples, but only when they agree: differing values have no meaning for a CFA.
+        # Some phones (e.g. Samsung) write 12 values for a 2x2 repeat and SamplesPerPixel 1. Read
+        # in the spec's row-column-sample order (3 per position) or as LibRaw reads them (the first
+        # rows x cols), they mean the same only when both readings agree; then they are used,
+        # otherwise the file is refused: the pixels' black level would be a guess.
         extra = black.size // (rows * cols) if black.size % (rows * cols) == 0 else 0
-        if samples != 1 or extra not in (2, 3, 4) or \
-                np.ptp(black.reshape(rows * cols, extra), axis=1).max() > 0.5:
+        if samples != 1 or extra not in (2, 3, 4) or not np.allclose(
+                black.reshape(rows * cols, extra).mean(axis=1), black[: rows * cols], atol=0.5):
             raise DngError(path, f"BlackLevel has {black.size} values, expected "
                                  f"{rows}x{cols}x{samples} (BlackLevelRepeatDim x SamplesPerPixel)")
         per_position = extra
@@ -295,7 +297,7 @@ def read_dng_info(path) -> DngInfo:
         with _library_log(path) as library_messages, tifffile.TiffFile(str(path)) as tif:
             info = _parse(path, tif, file_size)
         if library_messages and not info.warnings:
-            info.warnings.append(f"TIFF structure partly damaged ({_short(library_messages[0])})")
+            info.warnings.append(f"TIFF structure partly damaged ({_short(_plain(library_messages[0]))})")
         return check_dng_tags(info)
     except DngError:
         raise
@@ -303,10 +305,11 @@ def read_dng_info(path) -> DngInfo:
         with open(path, "rb") as handle:
             magic = handle.read(4)
         if magic in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"):
-            raise DngError(path, f"TIFF structure damaged or truncated ({_short(exc)})") from exc
-        raise DngError(path, f"not a TIFF/DNG file ({_short(exc)})") from exc
+            raise DngError(path, f"TIFF structure damaged or truncated ({_short(_plain(exc))})") from exc
+        raise DngError(path, f"not a TIFF/DNG file ({_short(_plain(exc))})") from exc
     except Exception as exc:  # tifffile raises many kinds on damaged files (struct.error, ...)
-        raise DngError(path, f"cannot parse DNG tags, file damaged or truncated ({_short(exc)})") from exc
+        raise DngError(path, "cannot parse DNG tags, file damaged or truncated "
+                             f"({_short(_plain(exc))})") from exc
 
 
 class _LogCollector(logging.Handler):
@@ -336,6 +339,18 @@ def _library_log(path):
     finally:
         logger.removeHandler(collector)
         logger.propagate = propagate
+
+
+def _plain(message) -> str:
+    """A tifffile message in our words: '<tifffile.TiffTag 50717 @310> invalid value offset 16383'
+    becomes 'tag 50717: invalid value offset 16383'; other '<...>' object names are dropped."""
+    text = str(message)
+    found = re.search(r"TiffTag (\d+) @\d+>\s*([^'\"]*)", text)
+    if found:
+        return f"tag {found.group(1)}: {found.group(2).strip()}"
+    text = re.sub(r"<[^<>]*>\s*", "", text)
+    text = re.sub(r"\w+\.fromfile|raised \w+Error\(|TiffFileError\(?", "", text)
+    return text.strip(" ()'\"") or "unreadable structure"
 
 
 def _short(exc) -> str:

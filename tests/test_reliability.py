@@ -1,0 +1,148 @@
+"""Issue 12's promises on hand-made cases: per-file tag checks, one profile validation for load
+and save, convert checks the profile first and leaves nothing behind, effects out of physical
+range refused, messages short and ours, CLI details (issue 8 'Packaging and interface')."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from test_io_dng import CM_D65, make_info, random_mosaic
+from g2r_jax import profile as pm
+from g2r_jax.cli.common import error_message
+from g2r_jax.cli.convert import main as convert_main
+from g2r_jax.cli.diagnose import main as diagnose_main
+from g2r_jax.cli.fit_profile import main as fit_main
+from g2r_jax.io.dng_info import DngError
+from g2r_jax.io.dng_read import read_dng_info
+from g2r_jax.io.dng_write import write_dng
+from g2r_jax.io.tag_checks import check_dng_tags
+
+
+@pytest.mark.parametrize("changes, field", [
+    ({"white_level": 60.0}, "BlackLevel"),                   # black at or above white
+    ({"white_level": 90.0}, "WhiteLevel"),                   # 23 DN of range
+    ({"black_level": np.array([-1.0, 0, 0, 0])}, "BlackLevel"),
+    ({"color_matrices": (np.zeros((3, 3)), CM_D65)}, "ColorMatrix1"),
+    ({"color_matrices": (CM_D65 * 9.2e18, CM_D65)}, "ColorMatrix1"),
+    ({"color_matrices": (-CM_D65, CM_D65)}, "ColorMatrix1"),
+    ({"camera_calibrations": (np.diag([1.0, -1.0, 1.0]), np.eye(3))}, "CameraCalibration1"),
+    ({"as_shot_neutral": np.array([0.5, 1.0, 0.0])}, "AsShotNeutral"),
+    ({"as_shot_neutral": np.array([0.5, 1.0, np.nan])}, "AsShotNeutral"),
+    ({"analog_balance": np.array([1.0, 1.0, 1e6])}, "AnalogBalance"),
+    ({"baseline_exposure": 1e9}, "BaselineExposure"),
+    ({"noise_profile": np.array([[-1e-4, 1e-8]] * 3)}, "NoiseProfile"),
+    ({"iso": -5.0}, "ISOSpeedRatings"),
+])
+def test_tag_checks_name_the_file_and_field(changes, field):
+    info = make_info(path="cam/x.dng", **changes)
+    with pytest.raises(DngError, match=f"^cam/x.dng: {field}: ") as error:
+        check_dng_tags(info)
+    assert len(str(error.value)) < 200
+
+
+def test_good_tags_pass():
+    assert check_dng_tags(make_info(path="x.dng")).path == "x.dng"
+
+
+def document():
+    return pm.profile_to_dict(pm.load_profile("Canon600D"))
+
+
+@pytest.mark.parametrize("mutate, field", [
+    (lambda d: d.update(baseline_exposure=float("nan")), "baseline_exposure"),
+    (lambda d: d.update(white_level=1e308), "white_level"),
+    (lambda d: d.update(black_level=[-1, 0, 0, 0]), "black_level"),
+    (lambda d: d.update(white_level=1), "black_level"),    # black 512 not below white 1
+    (lambda d: d["colour"]["color_matrices"][0][0].__setitem__(0, 9.2e18), "colour.color_matrices"),
+    (lambda d: d["colour"]["color_matrices"][0][0].__setitem__(0, -1e308), "colour.color_matrices"),
+    (lambda d: d["noise"]["shot"][0].__setitem__(0, -1e-3), "noise.shot"),
+    (lambda d: d["colour"].update(calibration_illuminants=[None]), "colour.calibration_illuminants"),
+    (lambda d: d.update(opcode_lists=["x"]), "opcode_lists"),
+    (lambda d: d.update(camera=[1, 2]), "camera"),
+    (lambda d: d["effects"].update(black_pedestal=[-1e308, 0, 0, 0]), "effects.black_pedestal"),
+    (lambda d: d["effects"].update(black_pedestal=[1e308] * 4), "effects.black_pedestal"),
+    (lambda d: d["effects"].update(channel_gain=[0, 1, 1, 1]), "effects.channel_gain"),
+    (lambda d: d["effects"].update(clip_level=-1), "effects.clip_level"),
+    (lambda d: d["effects"].update(shading=[[-3.0, 0.0]] * 4), "effects.shading"),
+    (lambda d: d["effects"].update(row_noise_std=-0.1), "effects.row_noise_std"),
+    (lambda d: d["illuminants"].update(means=[[-0.5, 0.5]] * len(d["illuminants"]["means"])), "illuminants.means"),
+    (lambda d: d["illuminants"].update(weights=[]), "illuminants.weights"),
+    (lambda d: d["exposure"].update(log2_std="wide"), "exposure.log2_std"),
+])
+def test_profile_validation_names_file_and_field_and_convert_writes_nothing(tmp_path, capsys, mutate, field):
+    doc = document()
+    mutate(doc)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(pm.ProfileError, match=f"bad.json: {field.replace('.', '[.]')}"):
+        pm.load_profile(path)
+    out = tmp_path / "out"
+    assert convert_main(["--example", "--profile", str(path), "-o", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.json" in err[0] and field in err[0] and len(err[0]) < 300
+    assert not out.exists()                           # checked before any input: no folder, no manifest
+
+
+def test_save_profile_refuses_what_the_loader_refuses(tmp_path):
+    profile = pm.load_profile("Canon600D")
+    broken = pm.replace(profile, white_level=profile.white_level * np.nan)
+    with pytest.raises(pm.ProfileError, match="p.json: white_level: contains NaN"):
+        pm.save_profile(broken, tmp_path / "p.json")
+    assert not list(tmp_path.iterdir())
+
+
+def test_fit_profile_drops_a_bad_file_and_fits_the_rest(tmp_path, capsys):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for name, neutral in (("a", [0.5, 1.0, 0.6]), ("b", [0.45, 1.0, 0.7])):
+        write_dng(folder / f"{name}.dng", random_mosaic(), make_info(as_shot_neutral=np.array(neutral)))
+    write_dng(folder / "c.dng", random_mosaic(), make_info(white_level=70.0, black_level=np.full(4, 60.0)))
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    assert fit_main([str(folder), "-o", str(tmp_path / "p.json")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "c.dng" in err[0] and "WhiteLevel" in err[0] and "Traceback" not in err[0]
+    pm.load_profile(tmp_path / "p.json")
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+
+
+def test_library_errors_become_a_plain_line():
+    class XlaRuntimeError(RuntimeError):
+        pass
+
+    XlaRuntimeError.__module__ = "jaxlib.xla_extension"
+    text = "INTERNAL: CpuCallback error calling callback\n" + "equinox frame\n" * 30
+    assert "equinox" not in error_message(XlaRuntimeError(text))
+    assert error_message(DngError("a.dng", "x" * 100000)).startswith("a.dng: xxx")
+    assert len(error_message(DngError("a.dng", "x" * 100000))) <= 300
+
+
+def test_list_profiles_without_output_and_example_names_its_profile(tmp_path, capsys):
+    assert convert_main(["--list-profiles"]) == 0
+    assert "Canon600D" in capsys.readouterr().out.split()
+    assert convert_main(["--example", "-o", str(tmp_path), "--no-progress", "--profile", "NikonD40"]) == 0
+    assert "'NikonD40'" in capsys.readouterr().err
+    assert convert_main(["--example", "--no-progress"]) == 2
+    assert "-o/--output" in capsys.readouterr().err
+
+
+def test_help_texts(capsys):
+    with pytest.raises(SystemExit):
+        convert_main(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    for option in ("--batch-size", "--engine", "--no-progress", "--seed"):
+        after = text.split(option, 1)[1].lstrip()
+        assert not after.startswith("--"), f"{option} has no help text"
+
+
+def test_diagnose_creates_the_report_folder(tmp_path, capsys):
+    measured = tmp_path / "m"
+    measured.mkdir()
+    (measured / "only.dng").write_text("not a dng")
+    report = tmp_path / "new" / "deeper" / "r.json"
+    assert diagnose_main(["--profile", "Canon600D", "--measured", str(measured), "--report", str(report)]) == 2
+    assert report.parent.is_dir()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "only.dng" in err[0]
