@@ -31,6 +31,7 @@ _SRGB_OFFSET = 0.055
 _SRGB_EXPONENT = 2.4
 
 _ROBERTSON = np.asarray(DATA_ISOTEMPERATURE_LINES_ROBERTSON1968, dtype=np.float64)
+_SDK_TINT_SCALE = -3000.0   # Adobe DNG SDK dng_temperature.cpp kTintScale
 
 
 def srgb_to_linear(encoded):
@@ -115,6 +116,36 @@ def xy_to_CCT(xy):
     fraction = jnp.where(index == 1, 0.0, d_current / (d_previous + d_current))
     interpolated_mired = mired[index - 1] * fraction + mired[index] * (1 - fraction)
     return 1e6 / interpolated_mired
+
+
+def xy_to_CCT_tint(xy):
+    """(CCT, tint) of xy as the Adobe DNG SDK's `dng_temperature` computes them (SDK 1.6,
+    dng_temperature.cpp): the Robertson CCT of `xy_to_CCT`, and the tint, the signed distance in
+    CIE 1960 uv from the locus point along the interpolated isotemperature line, times -3000
+    (the SDK's kTintScale).
+    """
+    uv = XYZ_to_uv(xy_to_XYZ(xy))
+    table = jnp.asarray(_ROBERTSON, dtype=uv.dtype)
+    mired, u_line, v_line, slope = table[:, 0], table[:, 1], table[:, 2], table[:, 3]
+    length = jnp.sqrt(1.0 + slope**2)
+    du, dv = 1.0 / length, slope / length
+    u = uv[..., 0:1]
+    v = uv[..., 1:2]
+    distance = -(u - u_line[1:]) * dv[1:] + (v - v_line[1:]) * du[1:]
+    crossed = distance <= 0
+    n_lines = table.shape[0] - 1
+    index = jnp.where(jnp.any(crossed, axis=-1), jnp.argmax(crossed, axis=-1) + 1, n_lines)
+    d_current = -jnp.minimum(jnp.take_along_axis(distance, (index - 1)[..., None], -1)[..., 0], 0.0)
+    d_previous = jnp.take_along_axis(distance, jnp.maximum(index - 2, 0)[..., None], -1)[..., 0]
+    fraction = jnp.where(index == 1, 0.0, d_current / (d_previous + d_current))
+    cct = 1e6 / (mired[index - 1] * fraction + mired[index] * (1 - fraction))
+    locus_u = u_line[index - 1] * fraction + u_line[index] * (1 - fraction)
+    locus_v = v_line[index - 1] * fraction + v_line[index] * (1 - fraction)
+    direction_u = du[index] * (1 - fraction) + du[index - 1] * fraction
+    direction_v = dv[index] * (1 - fraction) + dv[index - 1] * fraction
+    norm = jnp.sqrt(direction_u**2 + direction_v**2)
+    along = ((uv[..., 0] - locus_u) * direction_u + (uv[..., 1] - locus_v) * direction_v) / norm
+    return cct, along * _SDK_TINT_SCALE
 
 
 def matrix_bradford(xy_source, xy_target):

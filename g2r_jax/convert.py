@@ -87,17 +87,13 @@ def dng_info_for(profile, metadata: dict, height: int, width: int, *, noise: boo
     """The DNG tags of one simulated image: the camera's tags plus what was sampled (and the
     lens-shading OpcodeList2 when its inverse was applied)."""
     colour, info = profile.colour, profile.info
-    n = 1 if len(info.calibration_illuminants) == 1 else 2
-    matrices = lambda m: tuple(np.asarray(m[:n], np.float64))
     shot, read = metadata["noise_shot"], metadata["noise_read"]
     has_noise = noise and float(np.max(np.abs(shot))) + float(np.max(np.abs(read))) > 0
     return DngInfo(
         width=width, height=height, cfa_pattern=tuple(int(c) for c in np.asarray(profile.cfa_pattern)),
         black_level=np.asarray(profile.black_level, np.float64), white_level=float(profile.white_level),
         unique_camera_model=info.unique_camera_model, make=info.make or "g2r_jax", model=info.model or info.name,
-        calibration_illuminants=tuple(info.calibration_illuminants), color_matrices=matrices(colour.color_matrix),
-        camera_calibrations=matrices(colour.camera_calibration),
-        forward_matrices=matrices(colour.forward_matrix) if colour.has_forward_matrix else (),
+        **colour.dng_tags(),   # each matrix set with its own illuminant, in the model's order
         analog_balance=np.asarray(colour.analog_balance, np.float64),
         as_shot_neutral=np.asarray(metadata["neutral"], np.float64),
         baseline_exposure=float(profile.baseline_exposure),

@@ -63,40 +63,100 @@ CALIBRATION_ILLUMINANT_NAMES = {
 }
 
 
-def calibration_illuminant_cct(code: int) -> float:
-    """CCT in kelvin of an EXIF LightSource code, as the Adobe DNG SDK assigns it.
+OTHER_ILLUMINANT = 255   # EXIF LightSource 'other': its white is given by IlluminantData (DNG 1.6)
+
+# Adobe DNG SDK 1.6, dng_xy_coord.cpp, dng_illuminant_data(light): the white xy the SDK assigns to
+# each CalibrationIlluminant code (used by the three-illuminant weights); unknown codes get D50.
+_XY_STANDARD_A, _XY_D50, _XY_D55 = (0.4476, 0.4074), (0.3457, 0.3585), (0.3324, 0.3474)
+_XY_D65, _XY_D75 = (0.3127, 0.3290), (0.2990, 0.3149)
+CALIBRATION_ILLUMINANT_XY = {
+    3: _XY_STANDARD_A, 17: _XY_STANDARD_A,
+    18: (0.348483, 0.351747), 19: (0.310061, 0.316150), 23: _XY_D50,
+    1: _XY_D55, 4: _XY_D55, 9: _XY_D55, 20: _XY_D55,
+    10: _XY_D65, 21: _XY_D65, 11: _XY_D75, 22: _XY_D75,
+    12: (0.31310, 0.33727),   # daylight fluorescent: F1
+    13: (0.34588, 0.35875),   # day white fluorescent: F8
+    14: (0.37417, 0.37281),   # cool white fluorescent: F9
+    2: (0.37208, 0.37529),    # fluorescent: F2
+    15: (0.40910, 0.39430),   # white fluorescent: F3
+    16: (0.44018, 0.40329),   # warm white fluorescent: F4
+}
+_ISO_STUDIO_TUNGSTEN = 24   # the SDK places it on the Robertson locus at 3200 K, tint 0
+
+
+def calibration_illuminant_white_xy(code: int, illuminant_data=None) -> np.ndarray:
+    """White xy of a CalibrationIlluminant as the Adobe DNG SDK 1.6 assigns it (dng_xy_coord.cpp,
+    dng_illuminant_data): a fixed xy per EXIF LightSource code, the file's IlluminantData xy for
+    255 'other', and D50 for codes without one (0 'unknown'). Raises ValueError for 255 without data.
+    """
+    code = int(code)
+    if code == OTHER_ILLUMINANT:
+        if illuminant_data is None:
+            raise ValueError("CalibrationIlluminant 255 (other) needs IlluminantData giving its white")
+        xy = np.asarray(illuminant_data, np.float64).reshape(-1)
+        if xy.shape != (2,) or not np.all(np.isfinite(xy)) or np.any(xy <= 0) or xy.sum() >= 1:
+            raise ValueError(f"IlluminantData white {tuple(xy)} is not a valid xy chromaticity")
+        return xy
+    if code == _ISO_STUDIO_TUNGSTEN:
+        import colour
+        return np.asarray(colour.UCS_uv_to_xy(colour.temperature.CCT_to_uv_Robertson1968(
+            np.array([3200.0, 0.0]))), np.float64)
+    return np.asarray(CALIBRATION_ILLUMINANT_XY.get(code, _XY_D50), np.float64)
+
+
+def calibration_illuminant_cct(code: int, white_xy=None) -> float:
+    """CCT in kelvin of an EXIF LightSource code, as the Adobe DNG SDK assigns it; for 255
+    'other', the Robertson CCT of its IlluminantData `white_xy`.
 
     Raises ValueError for codes without a defined temperature (0 'unknown', 255 'other'
     without IlluminantData), since no interpolation is possible for them.
     """
     code = int(code)
+    if code == OTHER_ILLUMINANT and white_xy is not None:
+        import colour
+        uv = colour.xy_to_UCS_uv(np.asarray(white_xy, np.float64))
+        return float(colour.temperature.uv_to_CCT_Robertson1968(uv)[0])
     if code not in CALIBRATION_ILLUMINANT_CCT:
         raise ValueError(f"CalibrationIlluminant {code} has no defined colour temperature")
     return CALIBRATION_ILLUMINANT_CCT[code]
 
 
 class DngColourModel(eqx.Module):
-    """The colour tags of one camera, ordered so that index 0 has the lower CCT.
+    """The colour tags of one camera: each ColorMatrix with its own CameraCalibration,
+    ForwardMatrix and CalibrationIlluminant, ordered by ascending CCT.
 
-    A camera calibrated under one illuminant only holds the same matrices twice (the
-    interpolation weight is then irrelevant), exactly as a DNG reader treats it.
+    One calibrated illuminant: the matrices are held twice (the interpolation weight is then
+    irrelevant), exactly as a DNG reader treats it. Two: interpolated in mired (DNG spec ch. 6).
+    Three (DNG 1.6): weighted by distance to each illuminant's white in (tint, 1/CCT), as the
+    Adobe DNG SDK 1.6 does (`triple_illuminant_weights`). `calibration_illuminants` holds the
+    EXIF codes of the distinct tag sets in the same order as the arrays (static).
     """
 
-    calibration_cct: Float[Array, "2"]
-    color_matrix: Float[Array, "2 3 3"]
-    camera_calibration: Float[Array, "2 3 3"]
-    forward_matrix: Float[Array, "2 3 3"]
+    calibration_cct: Float[Array, "n"]
+    color_matrix: Float[Array, "n 3 3"]
+    camera_calibration: Float[Array, "n 3 3"]
+    forward_matrix: Float[Array, "n 3 3"]
     analog_balance: Float[Array, "3"]
+    illuminant_xy: Float[Array, "n 2"]
     has_forward_matrix: bool = eqx.field(static=True, default=False)
+    calibration_illuminants: tuple = eqx.field(static=True, default=())
+
+    @property
+    def is_triple(self) -> bool:
+        """True for a DNG 1.6 three-illuminant camera."""
+        return self.color_matrix.shape[0] == 3
 
     @classmethod
     def from_tags(cls, calibration_illuminants, color_matrices, camera_calibrations=(),
-                  forward_matrices=(), analog_balance=None, dtype=np.float32) -> "DngColourModel":
-        """Build the model from DNG tag values (one or two calibrated illuminants).
+                  forward_matrices=(), analog_balance=None, dtype=np.float32, *,
+                  illuminant_data=()) -> "DngColourModel":
+        """Build the model from DNG tag values (one, two or three calibrated illuminants), in any
+        tag order: each matrix keeps its own illuminant.
 
-        **Arguments:** `calibration_illuminants`: EXIF LightSource codes, one per matrix;
-        `color_matrices`: XYZ -> camera 3x3 matrices; optional `camera_calibrations`,
-        `forward_matrices` (same length) and `analog_balance` (3,).
+        **Arguments:** `calibration_illuminants`: EXIF LightSource codes, one per matrix (a single
+        matrix may have 0, unknown); `color_matrices`: XYZ -> camera 3x3 matrices; optional
+        `camera_calibrations`, `forward_matrices` (same length), `analog_balance` (3,) and
+        `illuminant_data`: per matrix, the white xy of a code-255 illuminant or None.
 
         **Returns:** a `DngColourModel`. Raises ValueError on missing or malformed tags.
         """
@@ -107,16 +167,31 @@ class DngColourModel(eqx.Module):
             raise ValueError("no ColorMatrix tags")
         if len(codes) != len(matrices):
             raise ValueError(f"{len(matrices)} ColorMatrix tags but {len(codes)} CalibrationIlluminant tags")
-        matrices, codes = matrices[:2], codes[:2]
-        ccts = [calibration_illuminant_cct(c) for c in codes]
+        n = len(matrices)
+        if n > 3:
+            raise ValueError(f"{n} ColorMatrix tags; DNG defines at most three calibration illuminants")
+        if n > 1:
+            for k, code in enumerate(codes, start=1):
+                if code == 0:
+                    raise ValueError(f"{n} ColorMatrix tags but CalibrationIlluminant{k} is 0 (unknown): "
+                                     "cannot interpolate between them")
+        data = (list(illuminant_data) + [None] * n)[:n]
+        whites = [calibration_illuminant_white_xy(c, d) for c, d in zip(codes, data)]
+        ccts = []
+        for code, white in zip(codes, whites):
+            if n == 1 and code not in CALIBRATION_ILLUMINANT_CCT and code != OTHER_ILLUMINANT:
+                ccts.append(5000.0)   # one matrix: its temperature is never used
+            else:
+                ccts.append(calibration_illuminant_cct(code, white))
         identity = np.eye(3)
-        calibrations = [np.asarray(m, np.float64).reshape(3, 3) for m in camera_calibrations][:2]
-        calibrations = calibrations if len(calibrations) == len(matrices) else [identity] * len(matrices)
-        forwards = [np.asarray(m, np.float64).reshape(3, 3) for m in forward_matrices][:2]
-        has_forward = len(forwards) == len(matrices)
-        forwards = forwards if has_forward else [identity] * len(matrices)
+        calibrations = [np.asarray(m, np.float64).reshape(3, 3) for m in camera_calibrations]
+        calibrations = calibrations if len(calibrations) == n else [identity] * n
+        forwards = [np.asarray(m, np.float64).reshape(3, 3) for m in forward_matrices]
+        has_forward = len(forwards) == n
+        forwards = forwards if has_forward else [identity] * n
         order = np.argsort(ccts, kind="stable")
-        if len(matrices) == 1:
+        sorted_codes = tuple(codes[i] for i in order)
+        if n == 1:
             order = np.array([0, 0])
         balance = np.ones(3) if analog_balance is None else np.asarray(analog_balance, np.float64).reshape(3)
         pick = lambda ms: jnp.asarray(np.stack([ms[i] for i in order]), dtype)
@@ -126,12 +201,28 @@ class DngColourModel(eqx.Module):
             camera_calibration=pick(calibrations),
             forward_matrix=pick(forwards),
             analog_balance=jnp.asarray(balance, dtype),
+            illuminant_xy=pick(whites),
             has_forward_matrix=bool(has_forward),
+            calibration_illuminants=sorted_codes,
         )
+
+    def dng_tags(self) -> dict:
+        """The colour tags of this model as `DngInfo` fields, each set with its own illuminant:
+        calibration_illuminants, color_matrices, camera_calibrations, forward_matrices and
+        illuminant_data (xy of code-255 illuminants; empty when there are none)."""
+        n = len(self.calibration_illuminants) or (3 if self.is_triple else 2)
+        take = lambda a: tuple(np.asarray(a, np.float64)[:n])
+        data = tuple(tuple(float(v) for v in np.asarray(self.illuminant_xy[k], np.float64))
+                     if c == OTHER_ILLUMINANT else None for k, c in enumerate(self.calibration_illuminants))
+        return dict(calibration_illuminants=tuple(self.calibration_illuminants),
+                    color_matrices=take(self.color_matrix), camera_calibrations=take(self.camera_calibration),
+                    forward_matrices=take(self.forward_matrix) if self.has_forward_matrix else (),
+                    illuminant_data=data if any(d is not None for d in data) else ())
 
 
 def interpolation_weight(cct, model: DngColourModel):
-    """Weight of the lower-CCT matrix: linear in inverse CCT, clamped to [0, 1] (DNG spec 6)."""
+    """Weight of the lower-CCT matrix of a one- or two-illuminant model: linear in inverse CCT,
+    clamped to [0, 1] (DNG spec 6)."""
     low, high = model.calibration_cct[0], model.calibration_cct[1]
     same = low == high
     span = jnp.where(same, 1.0, 1.0 / low - 1.0 / high)
@@ -139,16 +230,43 @@ def interpolation_weight(cct, model: DngColourModel):
     return jnp.where(same, 1.0, jnp.clip(weight, 0.0, 1.0))
 
 
-def _interpolate(matrices, weight):
-    return weight * matrices[0] + (1.0 - weight) * matrices[1]
+def _triple_point(xy):
+    """The SDK's scaled (tint / 200, min(1500 / CCT, 1)) coordinates of a white."""
+    cct, tint = _colour.xy_to_CCT_tint(xy)
+    return jnp.stack([tint / 200.0, jnp.minimum(1500.0 / cct, 1.0)], axis=-1)
+
+
+def triple_illuminant_weights(xy, illuminant_xy):
+    """Weights of three calibration illuminants at white xy (Adobe DNG SDK 1.6, dng_xy_coord.cpp,
+    CalculateTripleIlluminantWeights): inverse squared distances (+1e-8) in the scaled
+    (tint / 200, min(1500 / CCT, 1)) plane, normalised, smoothstepped, mapped so 0.02 -> 0 and
+    clipped to [0, 1], renormalised."""
+    distance = jnp.sum((_triple_point(illuminant_xy) - _triple_point(xy)) ** 2, axis=-1)
+    weights = 1.0 / (distance + 1e-8)
+    weights = weights / jnp.sum(weights)
+    weights = weights * weights * (3.0 - 2.0 * weights)
+    weights = jnp.clip((weights - 0.02) / 0.98, 0.0, 1.0)
+    return weights / jnp.sum(weights)
+
+
+def illuminant_weights(xy, model: DngColourModel):
+    """Weight of each of the model's matrices at white xy (sums to 1)."""
+    if model.is_triple:
+        return triple_illuminant_weights(xy, model.illuminant_xy.astype(jnp.result_type(xy)))
+    weight = interpolation_weight(_colour.xy_to_CCT(xy), model)
+    return jnp.stack([weight, 1.0 - weight])
+
+
+def _interpolate(matrices, weights):
+    return jnp.tensordot(weights, matrices, axes=1)
 
 
 @jax.jit
 def matrix_XYZ_to_camera(xy, model: DngColourModel):
-    """XYZtoCamera = AB . CC(CCT) . CM(CCT) at white balance xy (DNG spec, chapter 6)."""
-    weight = interpolation_weight(_colour.xy_to_CCT(xy), model)
-    color_matrix = _interpolate(model.color_matrix, weight)
-    calibration = _interpolate(model.camera_calibration, weight)
+    """XYZtoCamera = AB . CC(xy) . CM(xy) at white balance xy (DNG spec, chapter 6)."""
+    weights = illuminant_weights(xy, model)
+    color_matrix = _interpolate(model.color_matrix, weights)
+    calibration = _interpolate(model.camera_calibration, weights)
     return (model.analog_balance[:, None] * calibration) @ color_matrix
 
 
@@ -160,17 +278,56 @@ def xy_to_camera_neutral(xy, model: DngColourModel):
     return neutral / neutral[1]
 
 
-def _xy_at_weight(weight, neutral, model: DngColourModel):
-    """White xy of `neutral` under the matrices interpolated with `weight`."""
-    color_matrix = _interpolate(model.color_matrix, weight)
-    calibration = _interpolate(model.camera_calibration, weight)
+def _xy_at_weights(weights, neutral, model: DngColourModel):
+    """White xy of `neutral` under the matrices interpolated with `weights` (one per matrix)."""
+    color_matrix = _interpolate(model.color_matrix, weights)
+    calibration = _interpolate(model.camera_calibration, weights)
     XYZ = jnp.linalg.solve((model.analog_balance[:, None] * calibration) @ color_matrix, neutral)
     return _colour.XYZ_to_xy(XYZ)
+
+
+def _xy_at_weight(weight, neutral, model: DngColourModel):
+    return _xy_at_weights(jnp.stack([weight, 1.0 - weight]), neutral, model)
 
 
 def _weight_residual(weight, args):
     neutral, model = args
     return interpolation_weight(_colour.xy_to_CCT(_xy_at_weight(weight, neutral, model)), model) - weight
+
+
+def _triple_weights_from_pair(pair):
+    return jnp.concatenate([pair, 1.0 - jnp.sum(pair, keepdims=True)])
+
+
+def _triple_residual(pair, args):
+    neutral, model = args
+    xy = _xy_at_weights(_triple_weights_from_pair(pair), neutral, model)
+    return illuminant_weights(xy, model)[:2] - pair
+
+
+_SDK_PASSES = 30   # Adobe DNG SDK dng_color_spec::NeutralToXY: at most 30 passes from D50
+
+
+def _camera_neutral_to_xy_triple(neutral, model, max_steps, tolerance, throw):
+    """Three illuminants: the weights (w1, w2; w3 = 1 - w1 - w2) depend on xy through CCT and tint,
+    so the fixed point is a root of the 2-D map g(w) = weights(xy(w)) - w on the simplex. g + w maps
+    the simplex into itself continuously, so a root exists (Brouwer). Found by the specification's
+    iteration from D50 (30 passes, as the SDK), then Newton's method (optimistix) from there; the
+    result is accepted only when |g| <= tolerance, an a-posteriori check that it is the fixed point."""
+    dtype = neutral.dtype
+    step = lambda _, xy: _xy_at_weights(illuminant_weights(xy, model), neutral, model)
+    xy_plain = jax.lax.fori_loop(0, _SDK_PASSES, step, jnp.asarray(_colour.XY_D50, dtype))
+    start = illuminant_weights(xy_plain, model)[:2]
+    solution = optx.root_find(_triple_residual, optx.Newton(rtol=tolerance, atol=tolerance), start,
+                              args=(neutral, model), max_steps=max_steps, throw=False)
+    newton_ok = (solution.result == optx.RESULTS.successful) & jnp.all(jnp.isfinite(solution.value))
+    pair = jnp.where(newton_ok, solution.value, start)
+    residual = jnp.max(jnp.abs(_triple_residual(pair, (neutral, model))))
+    converged = residual <= 10 * tolerance
+    xy = _xy_at_weights(_triple_weights_from_pair(pair), neutral, model)
+    if throw:
+        xy = eqx.error_if(xy, ~converged, "DNG neutral -> xy fixed point (three illuminants) did not converge")
+    return _xy_at_weights(illuminant_weights(xy, model), neutral, model), converged
 
 
 @functools.partial(jax.jit, static_argnames=("max_steps", "tolerance", "throw"))
@@ -179,11 +336,12 @@ def camera_neutral_to_xy(neutral, model: DngColourModel, *, max_steps: int = 200
     """White-balance xy of a camera neutral: the DNG fixed point, solved with optimistix.
 
     DNG spec, "Translating Camera Neutral Coordinates to White Balance xy Coordinates":
-    iterate xy <- XYZ_to_xy(XYZtoCamera(xy)^-1 . neutral) until it stops moving. XYZtoCamera
-    depends on xy only through the interpolation weight w in [0, 1], so the fixed point is a
-    root of g(w) = weight(CCT(xy(w))) - w, and g(-d) > 0 > g(1 + d): bisection (optimistix) always
-    finds it, also where the specification's plain iteration cycles (the SDK then averages two
-    iterates after 30 passes) or Newton's method overshoots.
+    iterate xy <- XYZ_to_xy(XYZtoCamera(xy)^-1 . neutral) until it stops moving. With one or two
+    illuminants XYZtoCamera depends on xy only through the interpolation weight w in [0, 1], so the
+    fixed point is a root of g(w) = weight(CCT(xy(w))) - w, and g(-d) > 0 > g(1 + d): bisection
+    (optimistix) always finds it, also where the specification's plain iteration cycles (the SDK
+    then averages two iterates after 30 passes) or Newton's method overshoots. With three
+    illuminants see `_camera_neutral_to_xy_triple` (2-D, Newton from the SDK's iterate, checked).
 
     **Arguments:** `neutral` (3,) camera RGB of a neutral surface; `model`; `max_steps`;
     `tolerance` on w and on g (default: 100 ulp of the dtype; optimistix's bisection stops when
@@ -197,6 +355,8 @@ def camera_neutral_to_xy(neutral, model: DngColourModel, *, max_steps: int = 200
     if tolerance is None:
         tolerance = float(100 * jnp.finfo(dtype).eps)
     neutral = neutral.astype(dtype)
+    if model.is_triple:
+        return _camera_neutral_to_xy_triple(neutral, model, max_steps, tolerance, throw)
     solver = optx.Bisection(rtol=tolerance, atol=tolerance)
     solution = optx.root_find(_weight_residual, solver, jnp.asarray(0.5, dtype), args=(neutral, model),
                               # a margin outside [0, 1] keeps g strictly positive/negative at the ends
@@ -207,7 +367,7 @@ def camera_neutral_to_xy(neutral, model: DngColourModel, *, max_steps: int = 200
     weight = solution.value
     xy = _xy_at_weight(weight, neutral, model)
     # a second, exact DNG step at the solved white (identical to xy at convergence)
-    return _xy_at_weight(interpolation_weight(_colour.xy_to_CCT(xy), model), neutral, model), converged
+    return _xy_at_weights(illuminant_weights(xy, model), neutral, model), converged
 
 
 @jax.jit
@@ -219,11 +379,11 @@ def matrix_camera_to_XYZ_D50(xy, model: DngColourModel):
     """
     dtype = jnp.result_type(xy, model.color_matrix)
     if model.has_forward_matrix:
-        weight = interpolation_weight(_colour.xy_to_CCT(xy), model)
-        balance_calibration = model.analog_balance[:, None] * _interpolate(model.camera_calibration, weight)
+        weights = illuminant_weights(xy, model)
+        balance_calibration = model.analog_balance[:, None] * _interpolate(model.camera_calibration, weights)
         inverse_balance = jnp.linalg.inv(balance_calibration)
         reference_neutral = inverse_balance @ xy_to_camera_neutral(xy, model)
-        forward = _interpolate(model.forward_matrix, weight)
+        forward = _interpolate(model.forward_matrix, weights)
         return forward @ (inverse_balance / reference_neutral[:, None])
     adaptation = _colour.matrix_bradford(xy, jnp.asarray(_colour.XY_D50, dtype))
     return adaptation @ jnp.linalg.inv(matrix_XYZ_to_camera(xy, model))

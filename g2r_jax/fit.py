@@ -15,7 +15,6 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from . import colour as _colour
 from . import dng as _dng
 from ._x64 import enable_x64
 from . import illuminants as _illuminants
@@ -31,7 +30,8 @@ def colour_model_from_info(info: DngInfo, dtype=np.float32) -> _dng.DngColourMod
     try:
         return _dng.DngColourModel.from_tags(info.calibration_illuminants, info.color_matrices,
                                              info.camera_calibrations, info.forward_matrices,
-                                             info.analog_balance, dtype=dtype)
+                                             info.analog_balance, dtype=dtype,
+                                             illuminant_data=getattr(info, "illuminant_data", ()))
     except ValueError as error:
         raise DngError(info.path, str(error)) from None
 
@@ -92,17 +92,21 @@ def levels_from_infos(infos) -> tuple[np.ndarray, float, str | None]:
 
 
 def _same_matrices(infos) -> bool:
-    first = np.asarray(infos[0].color_matrices)
-    return all(np.asarray(i.color_matrices).shape == first.shape and
-               np.allclose(np.asarray(i.color_matrices), first, atol=1e-6) for i in infos)
+    """Do all files hold the same matrices (compared per illuminant, whatever the tag order)?"""
+    with enable_x64():
+        models = [colour_model_from_info(i, np.float64) for i in infos]
+    first = np.asarray(models[0].color_matrix)
+    return all(m.calibration_illuminants == models[0].calibration_illuminants and
+               np.allclose(np.asarray(m.color_matrix), first, atol=1e-6) for m in models)
 
 
 def fit_color_matrix_pair(infos, dtype=np.float32) -> _dng.DngColourModel:
-    """One ColorMatrix pair explaining files whose matrices differ.
+    """One set of ColorMatrices (one per calibration illuminant) explaining files whose matrices differ.
 
     For each file i, its effective XYZtoCamera at its own as-shot white (from its own tags) is
-    the target; the shared pair (CM1, CM2), interpolated in mired at each file's CCT with the
-    DNG weight, is fitted by Levenberg-Marquardt (optimistix) over all files.
+    the target; the shared matrices, interpolated at each file's white with the DNG weights
+    (mired for two illuminants, the SDK's triple weights for three), are fitted by
+    Levenberg-Marquardt (optimistix) over all files. Each fitted matrix keeps its illuminant.
     """
     with enable_x64():
         targets, weights = [], []
@@ -111,21 +115,24 @@ def fit_color_matrix_pair(infos, dtype=np.float32) -> _dng.DngColourModel:
             neutral = as_shot_neutral(info)
             neutral = np.ones(3) if neutral is None else neutral
             xy, _ = _dng.camera_neutral_to_xy(jnp.asarray(neutral), model)
-            weights.append(float(_dng.interpolation_weight(_colour.xy_to_CCT(xy), model)))
+            weights.append(np.asarray(_dng.illuminant_weights(xy, model)))
             targets.append(np.asarray(_dng.matrix_XYZ_to_camera(xy, model)))
-        targets, weights = jnp.asarray(np.stack(targets)), jnp.asarray(weights)
+        targets, weights = jnp.asarray(np.stack(targets)), jnp.asarray(np.stack(weights))
         reference = colour_model_from_info(infos[0], np.float64)
 
-        def residuals(pair, _):
-            predicted = weights[:, None, None] * pair[0] + (1 - weights[:, None, None]) * pair[1]
+        def residuals(matrices, _):
+            predicted = jnp.einsum("fk,kij->fij", weights, matrices)
             return (predicted - targets).reshape(-1)
 
         solver = optx.LevenbergMarquardt(rtol=1e-10, atol=1e-12)
         solution = optx.least_squares(residuals, solver, reference.color_matrix, max_steps=200)
-        pair = np.asarray(solution.value)
-    return _dng.DngColourModel.from_tags(infos[0].calibration_illuminants[:2], list(pair[:len(infos[0].color_matrices[:2])]),
-                                         infos[0].camera_calibrations, infos[0].forward_matrices,
-                                         infos[0].analog_balance, dtype=dtype)
+        fitted = np.asarray(solution.value)
+    tags = reference.dng_tags()   # the reference file's sets, in the model's order
+    n = len(tags["calibration_illuminants"])
+    return _dng.DngColourModel.from_tags(tags["calibration_illuminants"], list(fitted[:n]),
+                                         tags["camera_calibrations"], tags["forward_matrices"],
+                                         infos[0].analog_balance, dtype=dtype,
+                                         illuminant_data=tags["illuminant_data"])
 
 
 def noise_from_infos(infos, cfa_pattern, dtype=np.float32) -> _sensor.NoiseModel:
@@ -203,7 +210,7 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
             raise DngError(info.path, "no ColorMatrix tags: the camera's colour cannot be modelled")
         if not info.is_cfa:
             raise DngError(info.path, "LinearRaw (demosaiced) DNG: no CFA layout to simulate")
-        if tuple(info.calibration_illuminants) != tuple(reference.calibration_illuminants):
+        if sorted(info.calibration_illuminants) != sorted(reference.calibration_illuminants):
             raise DngError(info.path, f"calibration illuminants {info.calibration_illuminants} differ from "
                                       f"{reference.path}'s {reference.calibration_illuminants}")
     try:
@@ -221,7 +228,7 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
     opcodes = tuple(sorted((k, bytes(v).hex()) for k, v in (reference.opcode_lists or {}).items()))
     info = ProfileInfo(name=name, unique_camera_model=reference.unique_camera_model or reference.model or name,
                        make=reference.make, model=reference.model,
-                       calibration_illuminants=tuple(int(c) for c in reference.calibration_illuminants[:2]),
+                       calibration_illuminants=colour_model.calibration_illuminants,   # the model's order
                        provenance=provenance or f"fitted by g2r_jax from {len(infos)} DNG file(s)",
                        opcode_lists=opcodes)
     black, white, _ = levels_from_infos(infos)   # the CLI reports the note

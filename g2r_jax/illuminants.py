@@ -206,8 +206,8 @@ def locus_chromaticities(colour_model, n_points: int = 32, cct_range=None) -> np
     from . import dng as _dng
     from ._x64 import enable_x64
 
-    low, high = (np.asarray(colour_model.calibration_cct, np.float64) if cct_range is None
-                 else np.asarray(cct_range, np.float64))
+    ccts = np.asarray(colour_model.calibration_cct, np.float64)   # ascending
+    low, high = (ccts[0], ccts[-1]) if cct_range is None else np.asarray(cct_range, np.float64)
     if np.isclose(low, high):
         low, high = 2850.0, 6500.0  # one calibration illuminant: span tungsten to daylight
     ccts = 1e6 / np.linspace(1e6 / low, 1e6 / high, n_points)

@@ -55,7 +55,7 @@ class ProfileInfo:
     unique_camera_model: str = "g2r_jax camera"
     make: str = ""
     model: str = ""
-    calibration_illuminants: tuple = (21,)
+    calibration_illuminants: tuple = (21,)   # EXIF codes, in the order of the colour model's matrices
     provenance: str = ""
     opcode_lists: tuple = ()   # (("OpcodeList3", "hex..."), ...) from the camera's DNGs
 
@@ -108,7 +108,7 @@ def _list(a) -> Any:
 def profile_to_dict(profile: SensorProfile) -> dict:
     """The JSON document of a profile (schema `g2r_jax.sensor_profile`, version 1)."""
     colour, info = profile.colour, profile.info
-    n_matrices = 1 if len(info.calibration_illuminants) == 1 else 2
+    colour_tags = colour.dng_tags()   # each matrix set with its own illuminant
     illuminants = profile.illuminants
     cholesky = np.asarray(illuminants.cholesky, np.float64)
     effects = profile.effects
@@ -123,11 +123,13 @@ def profile_to_dict(profile: SensorProfile) -> dict:
         "white_level": float(profile.white_level),
         "baseline_exposure": float(profile.baseline_exposure),
         "colour": {
-            "calibration_illuminants": list(info.calibration_illuminants),
-            "color_matrices": _list(colour.color_matrix[:n_matrices]),
-            "camera_calibrations": _list(colour.camera_calibration[:n_matrices]),
-            "forward_matrices": _list(colour.forward_matrix[:n_matrices]) if colour.has_forward_matrix else [],
+            "calibration_illuminants": list(colour_tags["calibration_illuminants"]),
+            "color_matrices": _list(colour_tags["color_matrices"]),
+            "camera_calibrations": _list(colour_tags["camera_calibrations"]),
+            "forward_matrices": _list(colour_tags["forward_matrices"]) if colour.has_forward_matrix else [],
             "analog_balance": _list(colour.analog_balance),
+            **({"illuminant_data": [None if d is None else list(d) for d in colour_tags["illuminant_data"]]}
+               if colour_tags["illuminant_data"] else {}),
         },
         "illuminants": {
             "kind": illuminants.kind,
@@ -206,9 +208,14 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
 
     colour_doc = r.get(document, "colour", "colour")
     codes = r.get(colour_doc, "calibration_illuminants", "colour")
-    if not isinstance(codes, list) or len(codes) not in (1, 2):
-        r.fail("colour.calibration_illuminants", "expected a list of one or two EXIF LightSource codes")
+    if not isinstance(codes, list) or len(codes) not in (1, 2, 3):
+        r.fail("colour.calibration_illuminants", "expected a list of one to three EXIF LightSource codes")
     n = len(codes)
+    illuminant_data = r.get(colour_doc, "illuminant_data", "colour", optional=True, default=[])
+    if not isinstance(illuminant_data, list) or len(illuminant_data) not in (0, n):
+        r.fail("colour.illuminant_data", f"expected a list of {n} entries (null or [x, y])")
+    illuminant_data = [None if d is None else r.array(d, f"colour.illuminant_data[{k}]", (2,), positive=True)
+                       for k, d in enumerate(illuminant_data)]
     matrices = r.array(r.get(colour_doc, "color_matrices", "colour"), "colour.color_matrices", (n, 3, 3))
     calibrations = r.get(colour_doc, "camera_calibrations", "colour", optional=True, default=[])
     calibrations = r.array(calibrations, "colour.camera_calibrations", (n, 3, 3)) if len(calibrations) else []
@@ -217,7 +224,8 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
     balance = r.array(r.get(colour_doc, "analog_balance", "colour", optional=True, default=[1, 1, 1]),
                       "colour.analog_balance", (3,), positive=True)
     try:
-        colour = DngColourModel.from_tags(codes, matrices, calibrations, forwards, balance, dtype=dtype)
+        colour = DngColourModel.from_tags(codes, matrices, calibrations, forwards, balance, dtype=dtype,
+                                          illuminant_data=illuminant_data)
         cfa = parse_cfa(r.get(document, "cfa_pattern", "cfa_pattern"))
     except ValueError as error:
         r.fail("colour" if "CFA" not in str(error) else "cfa_pattern", str(error))
@@ -282,7 +290,7 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
         name=str(document.get("name", Path(source).stem)),
         unique_camera_model=str(camera.get("unique_camera_model", "g2r_jax camera")),
         make=str(camera.get("make", "")), model=str(camera.get("model", "")),
-        calibration_illuminants=tuple(int(c) for c in codes),
+        calibration_illuminants=colour.calibration_illuminants,   # the model's order
         provenance=str(document.get("provenance", "")),
         opcode_lists=tuple(sorted((str(k), str(v)) for k, v in opcode_lists.items())))
     spectral_doc = r.get(document, "spectral", "spectral", optional=True)

@@ -53,11 +53,11 @@ def matrix_srgb_to_white_balanced_camera_published(cct, colour_model):
     interpolation in mired without clamping, applied to D65-relative XYZ (no adaptation)."""
     low_cct = jnp.where(colour_model.calibration_cct[0] == 2850.0, _STANDARD_LIGHT_A_PUBLISHED,
                         colour_model.calibration_cct[0])
-    high_cct = colour_model.calibration_cct[1]
+    high_cct = colour_model.calibration_cct[-1]
     span = jnp.where(low_cct == high_cct, 1.0, 1.0 / low_cct - 1.0 / high_cct)
     weight = jnp.where(low_cct == high_cct, 1.0, (1.0 / cct - 1.0 / high_cct) / span)
     normalised = colour_model.color_matrix / jnp.sum(colour_model.color_matrix, axis=2, keepdims=True)
-    xyz_to_camera = weight * normalised[0] + (1 - weight) * normalised[1]
+    xyz_to_camera = weight * normalised[0] + (1 - weight) * normalised[-1]
     return xyz_to_camera @ jnp.asarray(_colour.MATRIX_SRGB_TO_XYZ, cct.dtype)
 
 

@@ -63,14 +63,14 @@ def _fixed_illuminants(profile):
 def info_for(profile, metadata: dict, height: int, width: int, index: int = 0) -> DngInfo:
     """The DngInfo a camera with this profile would write for one simulated mosaic."""
     info = profile.info
-    n = 1 if len(info.calibration_illuminants) == 1 else 2
+    colour_tags = profile.colour.dng_tags()
     return DngInfo(
         path=f"<simulated {index}>", width=width, height=height,
         cfa_pattern=tuple(int(c) for c in np.asarray(profile.cfa_pattern)),
         black_level=np.asarray(profile.black_level, np.float64),
         white_level=float(profile.white_level), unique_camera_model=info.unique_camera_model,
-        calibration_illuminants=tuple(info.calibration_illuminants),
-        color_matrices=tuple(np.asarray(profile.colour.color_matrix, np.float64)[:n]),
+        calibration_illuminants=colour_tags["calibration_illuminants"],
+        color_matrices=colour_tags["color_matrices"], illuminant_data=colour_tags["illuminant_data"],
         as_shot_neutral=np.asarray(metadata["neutral"], np.float64),
         baseline_exposure=float(profile.baseline_exposure), iso=float(metadata["iso"]))
 

@@ -72,15 +72,10 @@ def _calibration_infos(path: Path):
 
     if path.suffix.lower() == ".json":
         profile = load_profile(path, dtype=np.float64)
-        n = len(profile.info.calibration_illuminants)
         return [DngInfo(path=str(path), cfa_pattern=tuple(int(c) for c in np.asarray(profile.cfa_pattern)),
                         black_level=np.asarray(profile.black_level), white_level=float(profile.white_level),
                         unique_camera_model=profile.info.unique_camera_model,
-                        calibration_illuminants=profile.info.calibration_illuminants,
-                        color_matrices=tuple(np.asarray(profile.colour.color_matrix[:n])),
-                        camera_calibrations=tuple(np.asarray(profile.colour.camera_calibration[:n])),
-                        forward_matrices=tuple(np.asarray(profile.colour.forward_matrix[:n]))
-                        if profile.colour.has_forward_matrix else ())]
+                        **profile.colour.dng_tags())]
     return [read_dng_info(path)]
 
 

@@ -43,6 +43,7 @@ class DngInfo:
     color_matrices: tuple = ()                # XYZ -> camera, one per calibration illuminant
     camera_calibrations: tuple = ()           # same length as color_matrices, or empty
     forward_matrices: tuple = ()              # same length as color_matrices, or empty
+    illuminant_data: tuple = ()               # per matrix: white (x, y) of a code-255 illuminant or None; or empty
     analog_balance: Optional[np.ndarray] = None
     as_shot_neutral: Optional[np.ndarray] = None
     as_shot_white_xy: Optional[np.ndarray] = None

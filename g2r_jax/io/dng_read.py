@@ -26,6 +26,7 @@ from typing import Optional
 import numpy as np
 
 from g2r_jax.io.dng_info import DngError, DngInfo
+from g2r_jax.io.illuminant_data import parse_illuminant_data
 from g2r_jax.io.raw_compression import undecodable_reason
 from g2r_jax.io.tag_checks import check_dng_tags
 
@@ -90,6 +91,9 @@ TAGS = {
     "CameraCalibration3": 52530,
     "ColorMatrix3": 52531,
     "ForwardMatrix3": 52532,
+    "IlluminantData1": 52533,
+    "IlluminantData2": 52534,
+    "IlluminantData3": 52535,
 }
 
 PHOTOMETRIC_CFA = 32803
@@ -451,7 +455,7 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
             setattr(info, attr, _text(tag))
 
     # --- colour (spec ch. 4 'ColorMatrix1'..'ForwardMatrix3'; spec 'Colour' for their use)
-    illuminants, matrices, calibrations, forwards = [], [], [], []
+    illuminants, matrices, calibrations, forwards, whites = [], [], [], [], []
 
     def optional_matrix(name):
         """A 3x3 matrix tag from IFD0 (then the raw IFD), or None when absent."""
@@ -476,7 +480,17 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
         illuminants.append(_ints(path, ill, f"CalibrationIlluminant{k}")[0] if ill is not None else 0)
         calibrations.append(optional_matrix(f"CameraCalibration{k}"))
         forwards.append(optional_matrix(f"ForwardMatrix{k}"))
+        data = ifd0_first(f"IlluminantData{k}") if illuminants[-1] == 255 else None
+        if data is not None:   # DNG 1.6: the white of an 'other' (255) illuminant
+            try:
+                whites.append(tuple(parse_illuminant_data(_raw_bytes(data), tif.byteorder)))
+            except ValueError as error:
+                raise DngError(path, f"IlluminantData{k}: {error}") from None
+        else:
+            whites.append(None)
     info.calibration_illuminants = tuple(illuminants)
+    if any(w is not None for w in whites):
+        info.illuminant_data = tuple(whites)
     info.color_matrices = tuple(matrices)
     if any(c is not None for c in calibrations):   # spec default for a missing one: identity
         info.camera_calibrations = tuple(np.eye(3) if c is None else c for c in calibrations)
@@ -569,6 +583,10 @@ def require_colour_tags(info: DngInfo) -> DngInfo:
     if len(info.color_matrices) > 1 and 0 in info.calibration_illuminants:
         raise DngError(info.path, "several ColorMatrix tags but a CalibrationIlluminant is "
                                   "missing or 0 (unknown): cannot interpolate between them")
+    data = tuple(info.illuminant_data) + (None,) * len(info.calibration_illuminants)
+    for k, code in enumerate(info.calibration_illuminants, start=1):
+        if code == 255 and data[k - 1] is None:
+            raise DngError(info.path, f"CalibrationIlluminant{k} is 255 (other) but IlluminantData{k} is missing")
     return info
 
 

@@ -24,6 +24,7 @@ import numpy as np
 from g2r_jax.io.atomic import atomic_write_bytes
 from g2r_jax.io.dng_info import DngError, DngInfo
 from g2r_jax.io.dng_read import TAGS, require_bayer_cfa, require_colour_tags
+from g2r_jax.io.illuminant_data import encode_white_xy
 
 __all__ = ["write_dng", "write_dng_bytes", "to_rationals"]
 
@@ -113,7 +114,9 @@ def _extratags(where, mosaic: np.ndarray, info: DngInfo) -> list:
             tags.append((TAGS[name], dtype, len(vals), vals, True))
 
     n_matrices = len(info.color_matrices)
-    version = (1, 6, 0, 0) if n_matrices > 2 else (1, 4, 0, 0)
+    illuminant_data = tuple(info.illuminant_data or ())
+    uses_1_6 = n_matrices > 2 or any(d is not None for d in illuminant_data)
+    version = (1, 6, 0, 0) if uses_1_6 else (1, 4, 0, 0)
     add("NewSubfileType", LONG, [0])
     if info.make:
         add("Make", ASCII, _ascii(info.make))
@@ -176,6 +179,9 @@ def _extratags(where, mosaic: np.ndarray, info: DngInfo) -> list:
     add("BaselineExposure", SRATIONAL, [float(info.baseline_exposure)])
     for k, ill in enumerate(illuminants[:n_matrices], start=1):
         add(f"CalibrationIlluminant{k}", SHORT, [ill])
+    for k, white in enumerate(illuminant_data[:n_matrices], start=1):
+        if white is not None and illuminants[k - 1] == 255:   # DNG 1.6: the white of an 'other' illuminant
+            add(f"IlluminantData{k}", UNDEFINED, encode_white_xy(white, to_rationals))
     if area is not None:
         add("ActiveArea", LONG, area)
     if info.forward_matrices:
