@@ -67,6 +67,11 @@ def _dot_channels(rgb, weights):
     return rgb[..., 0] * weights[0] + rgb[..., 1] * weights[1] + rgb[..., 2] * weights[2]
 
 
+def resolve_highlight_safe(highlight_safe: bool | None, recipe: str) -> bool:
+    """`highlight_safe` as given, or by default only for the published recipe (README "Highlights")."""
+    return recipe == "published" if highlight_safe is None else bool(highlight_safe)
+
+
 def mosaic_camera_rgb(linear, srgb_to_wb_camera, gains, cfa_pattern, highlight_safe: bool):
     """Mosaicked un-white-balanced camera RGB (H, W) from linear sRGB (H, W, 3), computing only
     the channel each pixel keeps (the matrix row and gain of its tile position).
@@ -160,7 +165,7 @@ def sample_conditions(key, profile, *, neutral=None, iso=None, exposure_gain=Non
 
 
 def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: bool = True,
-                  effects: bool = True, highlight_safe: bool = True, recipe: str = "dng",
+                  effects: bool = True, highlight_safe: bool | None = None, recipe: str = "dng",
                   quantize: bool = True, lens_gain=None, colour: str = "matrix"):
     """Steps 1 and 5-7 of `unprocess`: the pixels, for `conditions` from `sample_conditions`.
 
@@ -172,7 +177,8 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
 
     # 5. Un-white-balance and mosaic in one step, scaled so that white reaches 1 in the
     #    strongest channel, then a global exposure gain.
-    mosaic = colour_stage(colour)[1](linear, conditions, profile.cfa_pattern, highlight_safe)
+    mosaic = colour_stage(colour)[1](linear, conditions, profile.cfa_pattern,
+                                     resolve_highlight_safe(highlight_safe, recipe))
     mosaic = mosaic * conditions["exposure_gain"]
 
     # 6. Optics and sensor: shading and channel gains, noise at the drawn ISO, readout effects.
@@ -199,7 +205,7 @@ def _check_image(image, ndim: int = 3):
 
 def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=None,
               exposure_gain=None, noise: bool = True, effects: bool = True,
-              highlight_safe: bool = True, recipe: str = "dng", quantize: bool = True, lens_gain=None,
+              highlight_safe: bool | None = None, recipe: str = "dng", quantize: bool = True, lens_gain=None,
               colour: str = "matrix"):
     """Turn one CG image into a RAW mosaic of the profiled camera.
 
@@ -211,7 +217,10 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     - `neutral`: (3,) camera neutral to use instead of sampling one (G = 1).
     - `iso`, `exposure_gain`: fix these instead of sampling them.
     - `noise`, `effects`: add the profile's noise / non-ideal sensor effects.
-    - `highlight_safe`: ease un-white-balance gains to 1 for near-white pixels.
+    - `highlight_safe`: ease un-white-balance gains to 1 for near-white pixels (Brooks et al.
+      2019). Default None: off for recipe 'dng' (a sensor records a grey surface at the
+      illuminant's channel ratios up to clipping; see the README, "Highlights"), on for
+      'published' (what the published code does).
     - `recipe`: 'dng' (exact DNG colour model) or 'published' (the Graphics2RAW code's
       approximation; see the README).
     - `colour`: 'matrix' (the DNG matrices of the profile), 'spectral' (the profile's spectral

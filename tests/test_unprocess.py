@@ -60,7 +60,7 @@ def test_highlight_safe_gains_keep_white_neutral_and_can_be_switched_off():
     white = jnp.ones((2, 2, 3), jnp.float32)
     neutral = jnp.array([0.5, 1.0, 0.7])
     args = dict(noise=False, neutral=neutral, quantize=False)
-    safe, _ = unprocess(jax.random.PRNGKey(0), white, profile, **args)
+    safe, _ = unprocess(jax.random.PRNGKey(0), white, profile, highlight_safe=True, **args)
     plain, _ = unprocess(jax.random.PRNGKey(0), white, profile, highlight_safe=False, **args)
     black = float(profile.black_level[0])
     span = float(profile.white_level) - black
