@@ -217,3 +217,32 @@ def test_single_matrix_without_calibration_illuminant_round_trips(tmp_path):
     camera_rgb = patch_camera_rgb(dng_path, boxes)
     delta_E = _delta_E(camera_rgb, codes, reference.render_to_XYZ_D65(camera_rgb, info.as_shot_neutral))
     assert delta_E <= 0.3, f"mean dE2000 {delta_E:.3f}"
+
+
+# ----------------------------------------------------------------------------- real files
+
+@pytest.mark.data
+def test_real_files_keep_each_matrix_with_its_illuminant_in_either_order(shared_data):
+    """The real DNGs' colour tags, read as stored and with their sets reversed (as a D65-first
+    phone writes them), give one model whose tags pair every code with the file's own matrices."""
+    checked = 0
+    for path in sorted((shared_data / "dng").glob("*.dng")):
+        info = read_dng_info(path)
+        if len(info.color_matrices) < 2:
+            continue
+        sets = list(zip(info.calibration_illuminants, info.color_matrices,
+                        info.camera_calibrations or [np.eye(3)] * len(info.color_matrices),
+                        info.forward_matrices or [None] * len(info.color_matrices)))
+        models = []
+        for order in (sets, sets[::-1]):
+            codes, cms, ccs, fms = zip(*order)
+            models.append(dng.DngColourModel.from_tags(codes, cms, ccs, () if fms[0] is None else fms, dtype=np.float64))
+        tags = [m.dng_tags() for m in models]
+        assert tags[0]["calibration_illuminants"] == tags[1]["calibration_illuminants"]
+        for code, matrix in zip(tags[0]["calibration_illuminants"], tags[0]["color_matrices"]):
+            stored = info.color_matrices[info.calibration_illuminants.index(code)]
+            np.testing.assert_allclose(matrix, stored, atol=1e-7, err_msg=f"{path.name}: code {code}")
+        for a, b in zip(tags[0]["color_matrices"], tags[1]["color_matrices"]):
+            np.testing.assert_array_equal(a, b)
+        checked += 1
+    assert checked >= 2

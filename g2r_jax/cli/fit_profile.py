@@ -84,7 +84,8 @@ def _one_camera(infos, failures):
     the others as failures rather than mixing two cameras' colour in one profile."""
     groups = {}
     for info in infos:
-        groups.setdefault((info.unique_camera_model, tuple(info.calibration_illuminants)), []).append(info)
+        # the set of illuminants, whatever the tag order (fit pairs each matrix with its own illuminant)
+        groups.setdefault((info.unique_camera_model, tuple(sorted(info.calibration_illuminants))), []).append(info)
     if len(groups) <= 1:
         return infos
     keep = max(groups, key=lambda k: len(groups[k]))
