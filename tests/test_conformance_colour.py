@@ -164,6 +164,21 @@ def test_triple_neutral_to_xy_matches_the_reference_iteration(tmp_path):
                                        reference.camera_to_XYZ_D50(np.asarray(got)), atol=1e-9)
 
 
+def test_triple_neutral_to_xy_converges_over_a_wide_range_in_float32():
+    """Whites from deep tungsten to blue sky and well off the locus: the 2-D solve converges and
+    returns the white the neutral came from (sampling runs in float32)."""
+    rng = np.random.default_rng(0)
+    xys = np.column_stack([rng.uniform(0.22, 0.55, 200), rng.uniform(0.22, 0.45, 200)])
+    reference = cc.Reference(TRIPLE["codes"], TRIPLE["color_matrices"], TRIPLE["camera_calibrations"],
+                             TRIPLE["forward_matrices"], [cc.SDK_WHITE[21], cc.SDK_WHITE[17], OTHER_XY])
+    neutrals = np.array([reference.xyz_to_camera(xy) @ colour.xy_to_XYZ(xy) for xy in xys])
+    model = dng.DngColourModel.from_tags(TRIPLE["codes"], TRIPLE["color_matrices"], TRIPLE["camera_calibrations"],
+                                         TRIPLE["forward_matrices"], illuminant_data=TRIPLE["illuminant_data"])
+    got, converged = dng.camera_neutrals_to_xy(jnp.asarray(neutrals / neutrals[:, 1:2], jnp.float32), model, throw=False)
+    assert bool(np.all(np.asarray(converged)))
+    np.testing.assert_allclose(np.asarray(got), xys, atol=1e-5)
+
+
 @pytest.mark.parametrize("xy", [(0.47, 0.41), (0.38, 0.38), (0.345, 0.352), (0.29, 0.30)],
                          ids=["below_A", "near_other", "between", "beyond_D65"])
 def test_three_illuminants_round_trip_through_the_sdk_reference(tmp_path, xy):
