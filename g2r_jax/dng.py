@@ -3,12 +3,16 @@
 References: Adobe, *Digital Negative (DNG) Specification* 1.4-1.6, chapter 6 "Mapping Camera
 Color Space to CIE XYZ Space" (matrix interpolation, "Translating White Balance xy Coordinates
 to Camera Neutral Coordinates", "Translating Camera Neutral Coordinates to White Balance xy
-Coordinates", "Camera to XYZ (D50) Transform"); Adobe DNG SDK 1.4 `dng_color_spec.cpp`.
+Coordinates", "Camera to XYZ (D50) Transform"); Adobe DNG SDK 1.4 `dng_color_spec.cpp`; for
+DNG 1.6 three-illuminant cameras and IlluminantData, Adobe DNG SDK 1.6 `dng_xy_coord.cpp`
+(`dng_illuminant_data`, `CalculateTripleIlluminantWeights`) and `dng_temperature.cpp`.
 
-    XYZtoCamera(xy)      = AB . CC(CCT) . CM(CCT)               (CC, CM interpolated in mired)
+    XYZtoCamera(xy)      = AB . CC(xy) . CM(xy)     (CC, CM: sum_k w_k(xy) M_k, one w per illuminant)
+    w(xy)                = mired interpolation at CCT(xy), two illuminants (clamped)
+                         = SDK triple weights at (CCT, tint)(xy), three illuminants
     neutral(xy)          = XYZtoCamera(xy) . XYZ(xy), normalised to G = 1
     xy(neutral)          = fixed point of xy <- xy(XYZtoCamera(xy)^-1 . neutral)
-    CameraToXYZ_D50(xy)  = FM(CCT) . diag(inv(AB.CC) . neutral)^-1 . inv(AB.CC)     with ForwardMatrix
+    CameraToXYZ_D50(xy)  = FM(xy) . diag(inv(AB.CC) . neutral)^-1 . inv(AB.CC)     with ForwardMatrix
                          = Bradford(xy -> D50) . XYZtoCamera(xy)^-1                  without
 
 Everything here is pure JAX on one colour (vmap for many); the fixed point is solved with

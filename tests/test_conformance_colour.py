@@ -261,3 +261,30 @@ def test_real_files_keep_each_matrix_with_its_illuminant_in_either_order(shared_
             np.testing.assert_array_equal(a, b)
         checked += 1
     assert checked >= 2
+
+
+def test_two_illuminants_one_given_by_illuminant_data(tmp_path):
+    """D65 and an 'other' (255) illuminant at Standard Light A's xy: interpolated in mired at the
+    Robertson CCT of its IlluminantData white; colour_hdri at those temperatures agrees, and the
+    written DNG carries the IlluminantData with its matrix."""
+    from dng_reference import neutral_to_xy
+
+    layout = dict(codes=(21, 255), color_matrices=(cc.CM_D65, cc.CM_A), illuminant_data=(None, cc.SDK_WHITE[17]))
+    info = require_colour_tags(read_dng_info(cc.write_colour_dng(tmp_path / "other.dng", **layout)))
+    profile_path = tmp_path / "other.json"
+    save_profile(fit_profile([info], name="conformance"), profile_path)
+    with enable_x64():
+        model = load_profile(profile_path, dtype=np.float64).colour
+        assert model.calibration_illuminants == (255, 21)
+        cct_other = float(model.calibration_cct[0])
+        assert 2850 < cct_other < 2860            # Robertson CCT of (0.4476, 0.4074)
+        arguments = (cct_other, 6500.0, cc.CM_A, cc.CM_D65, np.eye(3), np.eye(3), np.ones(3))
+        for neutral in ([0.45, 1, 0.75], [0.6, 1, 0.55], [0.9, 1, 0.35]):
+            xy, ok = dng.camera_neutral_to_xy(jnp.asarray(neutral, jnp.float64), model)
+            assert bool(ok)
+            np.testing.assert_allclose(np.asarray(xy), neutral_to_xy(np.asarray(neutral, np.float64), *arguments), atol=1e-9)
+    dng_path, _, _ = _convert(tmp_path, profile_path, np.array([0.6, 1.0, 0.55]), "other")
+    written = read_dng_info(dng_path)
+    assert written.dng_version == (1, 6, 0, 0) and written.calibration_illuminants == (255, 21)
+    assert written.illuminant_data[0] == pytest.approx(cc.SDK_WHITE[17], abs=1e-6) and written.illuminant_data[1] is None
+    np.testing.assert_allclose(written.color_matrices[0], cc.CM_A, atol=1e-6)
