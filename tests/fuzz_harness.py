@@ -257,15 +257,24 @@ def _alarm(seconds: int):
 def run_main(main, argv) -> tuple[int, str, str]:
     """main(argv) in-process with its output captured; exceptions become part of the result."""
     out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as native:   # what C libraries write to descriptor 2 counts too
+        os.dup2(native.fileno(), 2)
         try:
-            with _alarm(CASE_SECONDS):
-                status = main(argv)
-        except Hang as hang:
-            status = f"hang: {hang}"
-        except BaseException:  # noqa: BLE001 - an escaping exception breaks a promise
-            status = "exception: " + traceback.format_exc(limit=3)
-    return status, out.getvalue(), err.getvalue()
+            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+                try:
+                    with _alarm(CASE_SECONDS):
+                        status = main(argv)
+                except Hang as hang:
+                    status = f"hang: {hang}"
+                except BaseException:  # noqa: BLE001 - an escaping exception breaks a promise
+                    status = "exception: " + traceback.format_exc(limit=3)
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        native.seek(0)
+        native_text = native.read().decode("utf-8", "replace")
+    return status, out.getvalue(), err.getvalue() + native_text
 
 
 def _line_problems(command: str, err: str) -> list:
@@ -471,6 +480,8 @@ def campaign(kind: str, n: int, seed: int = 0, *, seeds_dir: Path | None = None,
                     name = f"{kind}_{hashlib.sha256(payload).hexdigest()[:10]}{suffix}"
                     (CORPUS / name).write_bytes(payload)
             shutil.rmtree(work, ignore_errors=True)
+            if (case + 1) % 100 == 0:
+                log(f"progress: {kind} {case + 1} cases done, {len(findings)} findings")
     finally:
         shutil.rmtree(base, ignore_errors=True)
     return {"kind": kind, "cases": n, "findings": findings}

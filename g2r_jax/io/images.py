@@ -172,8 +172,11 @@ def _read_tiff(path: Path) -> tuple:
 def _read_exr(path: Path) -> np.ndarray:
     import OpenEXR
 
+    from .native_stderr import captured_native_stderr
+
     try:
-        with OpenEXR.File(str(path), separate_channels=True) as exr:
+        with captured_native_stderr(lambda line: "(EXR_ERR" in line or "OpenEXR" in line), \
+                OpenEXR.File(str(path), separate_channels=True) as exr:
             channels = exr.channels()
             names = list(channels)
             wanted = None
