@@ -324,7 +324,15 @@ def load_profile(name_or_path, dtype=np.float32) -> SensorProfile:
         raise ProfileError(f"{path}: no such profile file") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise ProfileError(f"{path}: not valid JSON ({error})") from None
-    return profile_from_dict(document, str(path), dtype)
+    except (OSError, RecursionError) as error:
+        raise ProfileError(f"{path}: cannot read ({type(error).__name__})") from None
+    try:
+        return profile_from_dict(document, str(path), dtype)
+    except ProfileError:
+        raise
+    except Exception as error:  # noqa: BLE001 - any other failure still names the file, in one line
+        text = " ".join(str(error).split())[:160]
+        raise ProfileError(f"{path}: malformed profile ({type(error).__name__}: {text})") from None
 
 
 def save_profile(profile: SensorProfile, path) -> None:

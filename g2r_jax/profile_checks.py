@@ -59,7 +59,10 @@ class _Check:
             self.fail(field, "missing")
         if not _all_numbers(value):
             self.fail(field, "expected numbers")
-        array = np.asarray(value, dtype=np.float64)
+        try:
+            array = np.asarray(value, dtype=np.float64)
+        except (ValueError, OverflowError):
+            self.fail(field, "expected a regular array of numbers")
         if not np.all(np.isfinite(array)):
             self.fail(field, "contains NaN or infinity")
         if array.size and (np.min(array) < low or (low_open and np.min(array) <= low) or np.max(array) > high):

@@ -58,7 +58,7 @@ class Hang(Exception):
 
 # ----------------------------------------------------------------------------- seeds
 
-def make_seeds(folder: Path) -> dict:
+def make_seeds(folder: Path, profiles=SEED_PROFILES) -> dict:
     """Seed files in `folder`: {'dng': [(path, [good partner paths])], 'image': [...], 'profile': [...]}."""
     from PIL import Image
 
@@ -78,7 +78,7 @@ def make_seeds(folder: Path) -> dict:
     scenes.mkdir(exist_ok=True)
     for k in range(2):
         Image.fromarray(np.roll(pixels, 7 * k, axis=1)).save(scenes / f"scene{k}.png")
-    for name in SEED_PROFILES:
+    for name in profiles:
         out = folder / f"dng_{name}"
         if not (out / "scene1.dng").exists():
             with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
@@ -93,7 +93,10 @@ def make_seeds(folder: Path) -> dict:
         from g2r_jax.io.dng_read import read_dng_info
 
         for path in sorted(SHARED_DNG.glob("*.dng")):
-            bayer = read_dng_info(path).is_cfa
+            try:
+                bayer = read_dng_info(path).is_cfa
+            except Exception:  # noqa: BLE001 - a seed that is itself refused still gets partners
+                bayer = False
             seeds["dng"].append((path, [path, path] if bayer else seeds["dng"][-1][1]))
     return seeds
 
@@ -439,52 +442,94 @@ def diagnose_case(work: Path, partners, data: bytes) -> list:
 
 # ----------------------------------------------------------------------------- campaigns
 
-def campaign(kind: str, n: int, seed: int = 0, *, seeds_dir: Path | None = None, save_findings: bool = False,
-             log=print) -> dict:
-    """Run `n` cases of `kind` ('fit', 'convert' or 'diagnose'); returns counts and findings."""
+def generate_cases(kind: str, n: int, seed: int, seeds: dict):
+    """The cases of a campaign, deterministic in `seed`: dicts with the mutated payload and what
+    the case runner needs (no command is run here, so a finding can be regenerated)."""
     rng = random.Random(seed)
+    fields = {}
+    for case in range(n):
+        if kind in ("fit", "diagnose"):
+            choices = seeds["dng"] if kind == "fit" else seeds["dng"][:len(seeds["profile"])]
+            seed_path, partners = rng.choice(choices)
+            original = seed_path.read_bytes()
+            if seed_path not in fields:
+                fields[seed_path] = _tag_fields(original)
+            data, how = mutate_dng(original, rng, fields[seed_path])
+            yield {"case": case, "kind": kind, "partners": partners, "data": data, "suffix": ".dng",
+                   "label": f"{seed_path.name}: {how}", "payload": data}
+        else:
+            image = rng.choice(seeds["image"])
+            profile = rng.choice(seeds["profile"])
+            data, how = mutate_image(image.read_bytes(), image.suffix.lower(), rng)
+            profile_text, profile_how = None, "good profile"
+            if rng.random() < 0.5:
+                profile_text, profile_how = mutate_profile(profile.read_text(), rng)
+                data, how = image.read_bytes(), "good image"
+            yield {"case": case, "kind": kind, "image": image, "data": data, "profile": profile,
+                   "profile_text": profile_text,
+                   "payload": data if profile_text is None else profile_text.encode("utf-8", "surrogateescape"),
+                   "suffix": image.suffix if profile_text is None else ".json",
+                   "label": f"{image.name} ({how}), {profile.name} ({profile_how})"}
+
+
+def run_case(spec: dict, work: Path) -> list:
+    """Run one generated (or corpus) case in the empty folder `work`; the broken promises."""
+    if spec["kind"] == "fit":
+        return fit_case(work, None, spec["partners"], spec["data"])
+    if spec["kind"] == "diagnose":
+        return diagnose_case(work, spec["partners"], spec["data"])
+    return convert_case(work, spec["image"], f"mutated{spec['image'].suffix}", spec["data"], spec["profile"],
+                        spec["profile_text"])
+
+
+def campaign(kind: str, n: int, seed: int = 0, *, seeds_dir: Path | None = None, save_findings: bool = False,
+             profiles=SEED_PROFILES, log=print) -> dict:
+    """Run `n` cases of `kind` ('fit', 'convert' or 'diagnose'); returns counts and findings."""
     base = Path(tempfile.mkdtemp(prefix="g2r_fuzz_"))
-    seeds = make_seeds(seeds_dir or base / "seeds")
-    fields = {path: _tag_fields(path.read_bytes()) for path, _ in seeds["dng"]}
+    seeds = make_seeds(seeds_dir or base / "seeds", profiles)
     findings = []
     try:
-        for case in range(n):
-            work = base / f"case{case}"
+        for spec in generate_cases(kind, n, seed, seeds):
+            work = base / f"case{spec['case']}"
             work.mkdir()
-            if kind in ("fit", "diagnose"):
-                choices = seeds["dng"] if kind == "fit" else seeds["dng"][:len(SEED_PROFILES)]
-                seed_path, partners = rng.choice(choices)
-                original = seed_path.read_bytes()
-                data, how = mutate_dng(original, rng, fields[seed_path])
-                problems = (fit_case if kind == "fit" else diagnose_case)(work, seed_path, partners, data)
-                payload, suffix = data, ".dng"
-                label = f"{seed_path.name}: {how}"
-            else:
-                image = rng.choice(seeds["image"])
-                profile = rng.choice(seeds["profile"])
-                data, how = mutate_image(image.read_bytes(), image.suffix.lower(), rng)
-                profile_text, profile_how = None, "good profile"
-                if rng.random() < 0.5:
-                    profile_text, profile_how = mutate_profile(profile.read_text(), rng)
-                    data, how = image.read_bytes(), "good image"
-                problems = convert_case(work, image, f"mutated{image.suffix}", data, profile, profile_text)
-                payload = data if profile_text is None else profile_text.encode("utf-8", "surrogateescape")
-                suffix = image.suffix if profile_text is None else ".json"
-                label = f"{image.name} ({how}), {profile.name} ({profile_how})"
+            problems = run_case(spec, work)
             if problems:
-                finding = {"case": case, "kind": kind, "input": label, "problems": problems}
+                finding = {"case": spec["case"], "kind": kind, "input": spec["label"], "problems": problems}
                 findings.append(finding)
-                log(f"finding {len(findings)} in case {case}: {label}: {problems[0][:300]}")
+                log(f"finding {len(findings)} in case {spec['case']}: {spec['label']}: {problems[0][:300]}")
                 if save_findings:
-                    CORPUS.mkdir(exist_ok=True)
-                    name = f"{kind}_{hashlib.sha256(payload).hexdigest()[:10]}{suffix}"
-                    (CORPUS / name).write_bytes(payload)
+                    save_reproducer(spec)
             shutil.rmtree(work, ignore_errors=True)
-            if (case + 1) % 100 == 0:
-                log(f"progress: {kind} {case + 1} cases done, {len(findings)} findings")
+            if (spec["case"] + 1) % 100 == 0:
+                log(f"progress: {kind} {spec['case'] + 1} cases done, {len(findings)} findings")
     finally:
         shutil.rmtree(base, ignore_errors=True)
     return {"kind": kind, "cases": n, "findings": findings}
+
+
+def save_reproducer(spec: dict) -> Path:
+    """Keep a case's mutated file in tests/fuzz_corpus/ as '<kind>_<image kind or dng>_<hash>.<ext>'."""
+    CORPUS.mkdir(exist_ok=True)
+    what = spec["kind"] if spec["kind"] != "convert" else ("profile" if spec["profile_text"] is not None
+                                                           else "image")
+    path = CORPUS / f"{what}_{hashlib.sha256(spec['payload']).hexdigest()[:10]}{spec['suffix']}"
+    path.write_bytes(spec["payload"])
+    return path
+
+
+def corpus_case(path: Path, seeds: dict) -> dict:
+    """The case that replays one corpus file against good seeds."""
+    data = path.read_bytes()
+    what = path.name.split("_", 1)[0]
+    if what in ("fit", "diagnose"):
+        return {"kind": what, "partners": seeds["dng"][0][1], "data": data, "label": path.name}
+    if what == "profile":
+        return {"kind": "convert", "image": seeds["image"][0], "data": seeds["image"][0].read_bytes(),
+                "profile": seeds["profile"][0], "profile_text": data.decode("utf-8", "surrogateescape"),
+                "label": path.name}
+    image = next(p for p in seeds["image"] if p.suffix == path.suffix)
+    return {"kind": "convert", "image": image, "data": data, "profile": seeds["profile"][0], "profile_text": None,
+            "label": path.name}
 
 
 if __name__ == "__main__":
@@ -494,6 +539,9 @@ if __name__ == "__main__":
     import time
 
     began = time.time()
+    import jax
+
+    jax.config.update("jax_compilation_cache_dir", os.environ.get("G2R_FUZZ_JAX_CACHE", "/tmp/g2r_fuzz_jax_cache"))
     reuse = os.environ.get("G2R_FUZZ_SEEDS")
     result = campaign(what, count, start, save_findings=True, seeds_dir=Path(reuse) if reuse else None,
                       log=lambda line: print(line, flush=True))

@@ -145,6 +145,7 @@ def body(args) -> int:
         noise = read_noise_table(args.noise_table, np.resize(np.asarray(infos[0].black_level, float), 4),
                                  infos[0].white_level)
         source += f"; noise from {args.noise_table.name}"
+
     def attempt(subset, chromaticities_subset):
         """Fit and validate with the loader's own checks (nothing is written yet)."""
         fitted = fit_profile(subset, name=args.name or args.output.stem, illuminant_model=args.illuminant_model,
@@ -153,11 +154,26 @@ def body(args) -> int:
         validate_profile(fitted, args.output)
         return fitted
 
+    profile, first_error = None, None
     try:
         profile = attempt(infos, chromaticities)
     except Exception as error:  # noqa: BLE001 - find the files that break the fit, drop them, refit
+        first_error = error
         if chromaticities is not None or len(infos) < 2:
             raise ValueError(f"no valid profile from {len(infos)} file(s): {error_message(error)}") from error
+        fits = {}
+        for k in range(len(infos)):   # the one file whose absence (alone) gives a valid profile
+            try:
+                fits[k] = attempt(infos[:k] + infos[k + 1:], None)
+            except Exception:  # noqa: BLE001
+                pass
+        if len(fits) == 1:
+            (k, profile), = fits.items()
+            line = one_line(f"{infos[k].path}: dropped, no valid profile with this file ({error_message(error)})")
+            failures.append(line)
+            print(f"g2r-fit-profile: error: {line}", file=sys.stderr)
+            infos = infos[:k] + infos[k + 1:]
+    if profile is None:   # several bad files: keep those that give a valid profile on their own
         survivors = []
         for info in infos:
             try:
@@ -168,7 +184,7 @@ def body(args) -> int:
                 failures.append(line)
                 print(f"g2r-fit-profile: error: {line}", file=sys.stderr)
         if not survivors or len(survivors) == len(infos):
-            raise ValueError(f"no valid profile from {len(infos)} file(s): {error_message(error)}") from error
+            raise ValueError(f"no valid profile from {len(infos)} file(s): {error_message(first_error)}")
         infos = survivors
         profile = attempt(infos, None)
     if chromaticities is None:

@@ -14,7 +14,8 @@ Bounds (documented here, tested in tests/test_tag_checks.py):
   number at most `MAX_CONDITION`; ColorMatrix must give a positive camera response to the D65 white
   (every colour channel of a real sensor responds to white light), CameraCalibration a positive
   diagonal, ForwardMatrix a positive XYZ for the camera's white (spec ch. 6: it maps white to D50);
-- AnalogBalance, AsShotNeutral (relative to green): within [1/`MAX_GAIN`, `MAX_GAIN`];
+- AnalogBalance within [1/`MAX_GAIN`, `MAX_GAIN`]; AsShotNeutral relative to green within
+  [1/`MAX_NEUTRAL_RATIO`, `MAX_NEUTRAL_RATIO`] (real cameras' whites lie within about 0.1..3);
   AsShotWhiteXY inside the chromaticity triangle;
 - BaselineExposure within +-`MAX_BASELINE_EV` stops; NoiseProfile S, O in [0, 1] (normalised units);
   ISO in [0, 1e7] (0: unknown); ExposureTime in [0, 1e5] s; CalibrationIlluminant codes 0..255.
@@ -31,6 +32,7 @@ MAX_LEVEL = 65535.0
 MAX_MATRIX_ENTRY = 100.0
 MAX_CONDITION = 1e6
 MAX_GAIN = 1000.0
+MAX_NEUTRAL_RATIO = 20.0
 MAX_BASELINE_EV = 10.0
 _XYZ_D65 = np.array([0.95047, 1.0, 1.08883])
 
@@ -108,7 +110,8 @@ def check_dng_tags(info: DngInfo) -> DngInfo:
         if np.any(neutral <= 0):
             _fail(info, "AsShotNeutral", "values must be positive")
         relative = neutral / neutral[1]
-        if np.any(relative < 1 / MAX_GAIN) or np.any(relative > MAX_GAIN) or np.max(neutral) > MAX_GAIN:
+        if np.any(relative < 1 / MAX_NEUTRAL_RATIO) or np.any(relative > MAX_NEUTRAL_RATIO) or \
+                np.max(neutral) > MAX_GAIN:
             _fail(info, "AsShotNeutral", "values out of any plausible range")
     if info.as_shot_white_xy is not None:
         x, y = _finite(info, "AsShotWhiteXY", info.as_shot_white_xy)

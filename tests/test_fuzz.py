@@ -1,0 +1,53 @@
+"""Mutation fuzzing of the commands against issue 12's promises (harness: tests/fuzz_harness.py).
+
+Default run: the reproducers kept in tests/fuzz_corpus/ and a few fresh cases per command.
+Slow run (`-m slow`): G2R_FUZZ_CASES cases (default 300) through g2r-fit-profile, a third of that
+through g2r-convert and a few through g2r-diagnose. The full campaign's figures are in the
+README's 'Reliability' section, with the command that reproduces them.
+"""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+import fuzz_harness as fh
+
+CORPUS_FILES = sorted(fh.CORPUS.glob("*")) if fh.CORPUS.is_dir() else []
+
+
+@pytest.fixture(scope="module")
+def seeds(tmp_path_factory):
+    return fh.make_seeds(tmp_path_factory.mktemp("fuzz_seeds"), profiles=("NikonD40",))
+
+
+@pytest.mark.parametrize("path", CORPUS_FILES, ids=[p.name for p in CORPUS_FILES])
+def test_corpus_reproducers_keep_the_promises(seeds, tmp_path, path):
+    assert fh.run_case(fh.corpus_case(path, seeds), tmp_path) == []
+
+
+@pytest.mark.parametrize("kind, n, seed", [("fit", 8, 7), ("convert", 3, 7)])
+def test_fresh_cases_keep_the_promises(seeds, kind, n, seed):
+    result = fh.campaign(kind, n, seed, seeds_dir=seeds["image"][0].parents[1], profiles=("NikonD40",),
+                         log=lambda line: None)
+    assert result["findings"] == []
+
+
+def test_harness_sees_foreign_lines_and_escaping_errors(tmp_path):
+    def noisy(argv):
+        os.write(2, b"<tifffile.TiffPages @1712> invalid offset to first page 1712\n")
+        return 0
+
+    status, _, err = fh.run_main(noisy, [])
+    assert status == 0 and fh._line_problems("g2r-fit-profile", err)
+    status, _, _ = fh.run_main(lambda argv: 1 / 0, [])
+    assert str(status).startswith("exception")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind, share", [("fit", 1.0), ("convert", 1 / 3), ("diagnose", 0.01)])
+def test_campaign(tmp_path_factory, kind, share):
+    n = max(3, int(int(os.environ.get("G2R_FUZZ_CASES", "300")) * share))
+    result = fh.campaign(kind, n, seed=12, seeds_dir=tmp_path_factory.mktemp("seeds"))
+    assert result["findings"] == [], result["findings"][:3]
