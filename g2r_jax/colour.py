@@ -8,7 +8,11 @@ in whatever float dtype they are given.
 
 from __future__ import annotations
 
-import colour
+import warnings
+
+with warnings.catch_warnings():   # colour-science warns on import when matplotlib (plotting only) is absent
+    warnings.filterwarnings("ignore", message=".*Matplotlib.*")
+    import colour
 import jax
 import jax.numpy as jnp
 import numpy as np

@@ -146,3 +146,14 @@ def test_diagnose_creates_the_report_folder(tmp_path, capsys):
     assert report.parent.is_dir()
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "only.dng" in err[0]
+
+
+def test_no_colour_science_warning_without_matplotlib():
+    import subprocess
+    import sys
+
+    code = ("import sys; sys.modules['matplotlib'] = None\n"
+            "from g2r_jax.cli.convert import main\n"
+            "sys.exit(main(['--list-profiles']))")
+    done = subprocess.run([sys.executable, "-W", "default", "-c", code], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0 and done.stderr == "", done.stderr[-500:]
