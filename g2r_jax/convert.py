@@ -39,6 +39,7 @@ class ConvertOptions:
     effects: bool = True
     transfer: str = "auto"        # 'auto': sRGB for PNG/JPEG/TIFF, linear for EXR
     recipe: str = "dng"
+    colour: str = "matrix"        # colour stage: 'matrix', 'spectral', 'spectral-jakob2019'
     batch_size: int = 4
     workers: int = 2
     crop_odd: bool = False
@@ -134,12 +135,12 @@ def _batched_unprocess(options: ConvertOptions, transfer: str, with_neutral: boo
     `unprocess_batch` gives every image the same bytes whatever batch it falls in, so outputs do
     not depend on the batch size, on padding, or on which engine or chunk converted a file."""
     signature = (options.noise, options.effects, options.recipe, transfer, with_neutral, options.iso is not None,
-                 options.lens_shading)
+                 options.lens_shading, options.colour)
 
     if signature not in _COMPILED:
         def batch(keys, images, profile, neutrals, iso, lens_gain):
             return unprocess_batch(keys, images, profile, transfer=transfer, noise=options.noise,
-                                   effects=options.effects, recipe=options.recipe,
+                                   effects=options.effects, recipe=options.recipe, colour=options.colour,
                                    neutral=neutrals if with_neutral else None,
                                    iso=iso if options.iso is not None else None,
                                    lens_gain=lens_gain if options.lens_shading else None)

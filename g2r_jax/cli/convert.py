@@ -28,6 +28,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="decoding of input values (auto: sRGB for PNG/JPEG/TIFF, linear for EXR)")
     parser.add_argument("--recipe", choices=["dng", "published"], default="dng",
                         help="colour model: exact DNG inverse (default) or the published approximation")
+    parser.add_argument("--colour", choices=["matrix", "spectral", "spectral-jakob2019"], default="matrix",
+                        help="colour model: DNG matrices (default) or the spectral sensor model (sensitivities from "
+                             "the profile, else estimated from its matrices)")
     parser.add_argument("--batch-size", type=int, default=4,
                         help="images of one size converted together in one compiled call (default 4); "
                              "larger uses more memory, the output bytes do not change")
@@ -97,6 +100,12 @@ def body(args) -> int:
     if args.example:
         print(f"g2r-convert: example scene with profile {profile_name!r}"
               f"{' (the default; --profile NAME picks another)' if not args.profile else ''}", file=sys.stderr)
+    if args.colour != "matrix" and profile.spectral is None:
+        from ..spectral import attach_spectral
+
+        profile = attach_spectral(profile)
+        print(f"g2r-convert: profile {profile.info.name!r} has no sensitivities; using ones "
+              f"{profile.spectral.source}", file=sys.stderr)
     errors = []
     files = []
     for item in inputs if args.example else args.inputs:
@@ -111,7 +120,7 @@ def body(args) -> int:
         if len(neutrals) < len(files):
             raise ValueError(f"{args.illuminants}: {len(neutrals)} illuminants for {len(files)} inputs")
     options = ConvertOptions(seed=args.seed, iso=args.iso, noise=not args.no_noise, effects=not args.no_effects,
-                             transfer=args.transfer, recipe=args.recipe, batch_size=max(1, args.batch_size),
+                             transfer=args.transfer, recipe=args.recipe, colour=args.colour, batch_size=max(1, args.batch_size),
                              workers=max(1, args.workers), crop_odd=args.crop_odd, lens_shading=args.lens_shading,
                              progress=not args.no_progress and sys.stderr.isatty())
     for line in errors:

@@ -32,6 +32,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="auto: Gaussian + convex hull with >= 3 illuminants, else the single-DNG locus")
     parser.add_argument("--noise-table", type=Path,
                         help="noise calibration CSV (iso,cfa_channel_index,beta1_shot,beta2_read; DN incl. black)")
+    parser.add_argument("--sensitivities", type=Path,
+                        help="the camera's measured spectral sensitivities (rawtoaces JSON, camspec text, or CSV "
+                             "wavelength,r,g,b), stored in the profile for --colour spectral")
+    parser.add_argument("--sensitivities-camera", help="camera name inside a camspec file with several cameras")
     parser.add_argument("--name", help="profile name (default: the output file's stem)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the mixture model's initialisation (default 0)")
     add_debug_flag(parser)
@@ -95,6 +99,22 @@ def _one_camera(infos, failures):
                          f"{key[1]}) from the {len(groups[keep])} file(s) of {keep[0] or 'unnamed'} being fitted"
                          for i in members]
     return groups[keep]
+
+
+def _with_sensitivities(profile, path, camera, chromaticities, infos):
+    """The profile with measured sensitivities and the lamp families its illuminants demand
+    (from the measured illuminant CSV or the DNGs' as-shot neutrals)."""
+    import numpy as np
+
+    from ..illuminants import neutral_to_chromaticity
+    from ..io.sensitivities import read_sensitivities
+    from ..spectral import attach_spectral
+
+    sensitivities = read_sensitivities(path, camera)
+    if chromaticities is None:
+        neutrals = [info.as_shot_neutral for info in infos if getattr(info, "as_shot_neutral", None) is not None]
+        chromaticities = neutral_to_chromaticity(np.stack(neutrals)) if len(neutrals) >= 3 else None
+    return attach_spectral(profile, sensitivities.values, source=sensitivities.source, chromaticities=chromaticities)
 
 
 def body(args) -> int:
@@ -191,6 +211,8 @@ def body(args) -> int:
         note = levels_from_infos(infos)[2]
         if note:
             print(f"g2r-fit-profile: note: {note}", file=sys.stderr)
+    if args.sensitivities:
+        profile = _with_sensitivities(profile, args.sensitivities, args.sensitivities_camera, chromaticities, infos)
     save_profile(profile, args.output)
     print(f"g2r-fit-profile: wrote {args.output} ({profile.illuminants.kind} illuminant model, "
           f"{len(infos)} file(s); {len(failures)} failed)")
