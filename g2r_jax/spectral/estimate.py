@@ -98,19 +98,18 @@ def estimate_from_matrices(lights, matrices, basis=None, *, prior_weight: float 
 
 
 def estimate_sensitivities(colour_model) -> tuple[np.ndarray, str]:
-    """Sensitivities of a profile's camera from its `DngColourModel` (the ColorMatrix tags, with
-    CameraCalibration and AnalogBalance applied as the DNG spec's XYZtoCamera), and the provenance."""
-    from ..dng import CALIBRATION_ILLUMINANT_CCT
-
+    """Sensitivities of a profile's camera from its `DngColourModel` (each ColorMatrix with
+    CameraCalibration and AnalogBalance applied, as the DNG spec's XYZtoCamera, under its own
+    calibration illuminant's spectrum), and the provenance line."""
     ccts = np.asarray(colour_model.calibration_cct, np.float64)
     matrices = (np.asarray(colour_model.analog_balance, np.float64)[None, :, None]
                 * np.asarray(colour_model.camera_calibration, np.float64)) @ np.asarray(colour_model.color_matrix, np.float64)
-    by_cct = {v: c for c, v in CALIBRATION_ILLUMINANT_CCT.items() if c in (17, 21, 23, 20, 22)}
-    lights = [calibration_light(by_cct[float(t)]) if float(t) in by_cct else tables.locus_spectrum(float(t))
-              for t in ccts]
-    if np.isclose(ccts[0], ccts[1]) and np.allclose(matrices[0], matrices[1]):
-        lights, matrices = lights[:1], matrices[:1]
-    estimate = estimate_from_matrices(lights, matrices)
-    source = (f"estimated from {len(matrices)} ColorMatrix tag(s) with the shipped basis "
+    codes = tuple(getattr(colour_model, "calibration_illuminants", ()) or ())
+    n = len(codes) if codes else (1 if np.allclose(matrices[0], matrices[-1]) else len(matrices))
+    codes = codes or (0,) * n
+    lights = [calibration_light(code) if int(code) in ILLUMINANT_SPECTRUM else tables.locus_spectrum(float(cct))
+              for code, cct in zip(codes, ccts[:n])]
+    estimate = estimate_from_matrices(lights, matrices[:n])
+    source = (f"estimated from {n} ColorMatrix tag(s) with the shipped basis "
               f"({shipped_basis()['source']})")
     return estimate, source
