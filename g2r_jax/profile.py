@@ -105,6 +105,39 @@ def _list(a) -> Any:
     return np.asarray(a, np.float64).tolist()
 
 
+def _noise_to_dict(noise: _sensor.NoiseModel) -> dict:
+    """The `noise` object; the optional shape (`g2r_jax.noise_shape`) only when present."""
+    document = {"iso": _list(noise.iso), "shot": _list(noise.shot), "read": _list(noise.read),
+                "iso_range": _list(noise.iso_range)}
+    if noise.level_variance is not None:
+        document["level_function"] = {"knots": _list(noise.level_knots), "variance": _list(noise.level_variance)}
+    if noise.correlation_kernel is not None:
+        document["correlation_kernel"] = _list(noise.correlation_kernel)
+    return document
+
+
+def _noise_shape_from_dict(r, noise_doc, n_iso: int) -> dict:
+    """Optional noise level function and correlation kernel of a `noise` object (validated)."""
+    shape = {}
+    level = r.get(noise_doc, "level_function", "noise", optional=True)
+    if level is not None:
+        knots = r.array(r.get(level, "knots", "noise.level_function"), "noise.level_function.knots", (None,))
+        if len(knots) < 2 or np.any(np.diff(knots) <= 0):
+            r.fail("noise.level_function.knots", "must be at least two strictly ascending signal values")
+        variance = r.array(r.get(level, "variance", "noise.level_function"), "noise.level_function.variance",
+                           (n_iso, 4, len(knots)))
+        if np.any(variance < 0):
+            r.fail("noise.level_function.variance", "must not be negative")
+        shape.update(level_knots=knots, level_variance=variance)
+    kernel = r.get(noise_doc, "correlation_kernel", "noise", optional=True)
+    if kernel is not None:
+        kernel = r.array(kernel, "noise.correlation_kernel", (4, 3, 3))
+        if np.any(np.sum(kernel**2, axis=(1, 2)) <= 0):
+            r.fail("noise.correlation_kernel", "a kernel of all zeros has no noise to correlate")
+        shape["correlation_kernel"] = kernel
+    return shape
+
+
 def profile_to_dict(profile: SensorProfile) -> dict:
     """The JSON document of a profile (schema `g2r_jax.sensor_profile`, version 1)."""
     colour, info = profile.colour, profile.info
@@ -139,12 +172,7 @@ def profile_to_dict(profile: SensorProfile) -> dict:
             "hull": _list(illuminants.hull) if illuminants.use_hull else None,
         },
         "exposure": {"log2_mean": float(profile.exposure.log2_mean), "log2_std": float(profile.exposure.log2_std)},
-        "noise": {
-            "iso": _list(profile.noise.iso),
-            "shot": _list(profile.noise.shot),
-            "read": _list(profile.noise.read),
-            "iso_range": _list(profile.noise.iso_range),
-        },
+        "noise": _noise_to_dict(profile.noise),
         "effects": {
             "black_pedestal": _list(effects.black_pedestal),
             "clip_level": float(effects.clip_level),
@@ -266,7 +294,8 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
             shot=as_j(r.array(r.get(noise_doc, "shot", "noise"), "noise.shot", (len(iso), 4))),
             read=as_j(r.array(r.get(noise_doc, "read", "noise"), "noise.read", (len(iso), 4))),
             iso_range=as_j(r.array(r.get(noise_doc, "iso_range", "noise", optional=True,
-                                         default=[iso.min(), iso.max()]), "noise.iso_range", (2,), positive=True)))
+                                         default=[iso.min(), iso.max()]), "noise.iso_range", (2,), positive=True)),
+            **{k: as_j(v) for k, v in _noise_shape_from_dict(r, noise_doc, len(iso)).items()})
 
     effects_doc = r.get(document, "effects", "effects", optional=True, default={})
     get_effect = lambda key, shape: r.array(r.get(effects_doc, key, "effects", optional=True, default=_EFFECT_DEFAULTS[key]),

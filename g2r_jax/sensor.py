@@ -14,6 +14,8 @@ imbalance, radial lens/colour shading, defective pixels and row/column banding (
 
 from __future__ import annotations
 
+from typing import Optional
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -33,12 +35,20 @@ class NoiseModel(eqx.Module):
 
     `iso` is ascending; shot/read are interpolated linearly in ISO between rows and held
     constant outside. `iso_range` bounds the log-uniform ISO draw when none is given.
+
+    Optional shape of the noise (`g2r_jax.noise_shape`; None = absent, today's model):
+    `level_knots` (K,) and `level_variance` (N, 4, K): a noise level function per ISO row and
+    tile position, piecewise linear in x, used instead of shot * x + read; `correlation_kernel`
+    (4, 3, 3): a spatial correlation kernel within each CFA plane.
     """
 
     iso: Float[Array, "N"]
     shot: Float[Array, "N 4"]
     read: Float[Array, "N 4"]
     iso_range: Float[Array, "2"]
+    level_knots: Optional[Float[Array, "K"]] = None
+    level_variance: Optional[Float[Array, "N 4 K"]] = None
+    correlation_kernel: Optional[Float[Array, "4 3 3"]] = None
 
 
 class SensorEffects(eqx.Module):
@@ -99,14 +109,44 @@ def noise_parameters(iso, noise: NoiseModel):
     return interpolate(noise.shot), interpolate(noise.read)
 
 
-def add_noise(key, mosaic, shot, read):
+def noise_level_at(iso, noise: NoiseModel):
+    """(4, K) noise level function variances at `iso`, or None when the model has none."""
+    if noise.level_variance is None:
+        return None
+    from . import noise_shape
+
+    return noise_shape.level_variance_at(iso, (noise.iso, noise.level_variance))
+
+
+def add_noise(key, mosaic, shot, read, *, level_knots=None, level_variance=None, correlation_kernel=None):
     """Heteroscedastic Gaussian noise: x + sqrt(max(shot[p] * x + read[p], 0)) * N(0, 1).
 
     The draws are those of `jax.random.normal(key, (4, H/2, W/2))` on the planes layout, each
-    read at its own pixel, so the noise does not depend on the layout the mosaic is held in."""
+    read at its own pixel, so the noise does not depend on the layout the mosaic is held in.
+    Optional shape (`g2r_jax.noise_shape`): `level_knots` (K,) with `level_variance` (4, K) at
+    this ISO replace shot * x + read by that level function; `correlation_kernel` (4, 3, 3)
+    filters the normals within each CFA plane (unit sum of squares: same variance)."""
+    if level_variance is not None or correlation_kernel is not None:
+        return _add_shaped_noise(key, mosaic, shot, read, level_knots, level_variance, correlation_kernel)
     variance = jnp.maximum(per_position(shot, mosaic.shape) * jnp.maximum(mosaic, 0)
                            + per_position(read, mosaic.shape), 0.0)
     return mosaic + jnp.sqrt(variance) * standard_normal_planes(key, mosaic.shape, mosaic.dtype)
+
+
+def _add_shaped_noise(key, mosaic, shot, read, level_knots, level_variance, correlation_kernel):
+    """`add_noise` with a noise level function and/or a correlation kernel, on the planes layout
+    (same normals as `add_noise`: pixel (y, x) draws its plane element's normal)."""
+    from . import noise_shape
+
+    planes = to_planes(mosaic)
+    if level_variance is not None:
+        variance = noise_shape.level_function_planes(planes, level_knots, level_variance)
+    else:
+        variance = shot[:, None, None] * jnp.maximum(planes, 0) + read[:, None, None]
+    normals = to_planes(standard_normal_planes(key, mosaic.shape, mosaic.dtype))
+    if correlation_kernel is not None:
+        normals = noise_shape.correlate_planes(normals, correlation_kernel.astype(mosaic.dtype))
+    return from_planes(planes + jnp.sqrt(jnp.maximum(variance, 0.0)) * normals)
 
 
 # ----------------------------------------------------------------------------- fast normal draws

@@ -161,6 +161,7 @@ def sample_conditions(key, profile, *, neutral=None, iso=None, exposure_gain=Non
     shot, read = _sensor.noise_parameters(iso, profile.noise)
     return {**colour_conditions, "iso": iso,
             "exposure_gain": jnp.asarray(exposure_gain, dtype), "noise_shot": shot, "noise_read": read,
+            "noise_level": _sensor.noise_level_at(iso, profile.noise),
             "gains": neutral / jnp.max(neutral), "noise_key": k_noise, "readout_key": k_readout}
 
 
@@ -187,7 +188,9 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
     if lens_gain is not None:
         mosaic = mosaic / _sensor.from_planes(lens_gain)
     if noise:
-        mosaic = _sensor.add_noise(conditions["noise_key"], mosaic, conditions["noise_shot"], conditions["noise_read"])
+        mosaic = _sensor.add_noise(conditions["noise_key"], mosaic, conditions["noise_shot"], conditions["noise_read"],
+                                   level_knots=profile.noise.level_knots, level_variance=conditions.get("noise_level"),
+                                   correlation_kernel=profile.noise.correlation_kernel)
     effect_parameters = profile.effects if effects else _sensor.no_effects()
     if effects:
         mosaic = _sensor.apply_readout_effects(conditions["readout_key"], mosaic, profile.effects)

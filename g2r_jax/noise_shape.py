@@ -1,0 +1,56 @@
+"""Optional shape of the simulated noise: a noise level function and a spatial correlation kernel.
+
+Real raw files are not always the sensor's Poissonian-Gaussian noise: lossy raw compression
+(VC-5 in GoPro's GPR, lossy DNG) and phones' raw denoising leave a noise whose variance is not
+linear in the signal and which is correlated between neighbouring pixels. Two optional
+components of `sensor.NoiseModel` describe it; the jitted noise stage (`sensor.add_noise`)
+calls the functions here only when they are present, so profiles without them simulate exactly
+as before.
+
+- Noise level function: variance as a piecewise-linear function of the normalised signal x on a
+  fixed knot grid, per ISO row and tile position (`level_knots` (K,), `level_variance`
+  (N, 4, K)); used instead of shot * x + read. Held constant outside the knots.
+- Correlation kernel: a 3 x 3 kernel per tile position (`correlation_kernel` (4, 3, 3)) applied
+  within each CFA plane to the white normals, normalised to unit sum of squares so that the
+  pixel variance stays what the level function (or shot * x + read) says. Spatially correlated
+  Gaussian noise as white noise filtered by a kernel: e.g. Lebrun, Colom & Morel, "Multiscale
+  image blind denoising", IEEE TIP 2015 (noise model of compressed and processed images).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+
+def level_variance_at(iso, knots_variance):
+    """(4, K) level-function variances at `iso`, linear in ISO between rows (as shot/read).
+
+    `knots_variance` is the pair (iso (N,), variance (N, 4, K))."""
+    isos, variance = knots_variance
+    n, p, k = variance.shape
+    flat = variance.reshape(n, p * k)
+    return jax.vmap(lambda column: jnp.interp(iso, isos, column), in_axes=1)(flat).reshape(p, k)
+
+
+def level_function_planes(planes, knots, variance):
+    """Variance of every plane pixel (4, h, w): piecewise-linear in the signal per position."""
+    return jax.vmap(lambda plane, values: jnp.interp(plane, knots, values))(planes, variance)
+
+
+def normalised_kernel(kernel):
+    """(4, 3, 3) kernels scaled to unit sum of squares (the filtered noise keeps unit variance)."""
+    return kernel / jnp.sqrt(jnp.maximum(jnp.sum(kernel**2, axis=(1, 2), keepdims=True), 1e-30))
+
+
+def correlate_planes(white, kernel):
+    """White normals (4, h, w) filtered within each plane by its 3 x 3 kernel, circularly
+    (periodic boundary: every output sums nine distinct draws, so the variance is the same at
+    the borders as inside). Output[y, x] = sum_{i,j} k[i, j] white[y + i - 1, x + j - 1]."""
+    kernel = normalised_kernel(kernel)
+    out = jnp.zeros_like(white)
+    for i in range(3):
+        for j in range(3):
+            shifted = jnp.roll(white, (1 - i, 1 - j), axis=(1, 2))
+            out = out + kernel[:, i, j][:, None, None] * shifted
+    return out
