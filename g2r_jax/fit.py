@@ -20,7 +20,7 @@ from ._x64 import enable_x64
 from . import illuminants as _illuminants
 from . import sensor as _sensor
 from .io.dng_info import DngInfo, DngError
-from .profile import ProfileInfo, SensorProfile, default_noise, parse_cfa
+from .profile import ProfileInfo, SensorProfile, parse_cfa
 
 
 def colour_model_from_info(info: DngInfo, dtype=np.float32) -> _dng.DngColourModel:
@@ -140,22 +140,12 @@ def noise_from_infos(infos, cfa_pattern, dtype=np.float32) -> _sensor.NoiseModel
 
     NoiseProfile holds (S, O) per colour plane (or one pair for all), in normalised units
     (DNG spec 1.6, NoiseProfile): variance = S x + O; mapped to tile positions by the CFA.
+    Files without a usable NoiseProfile (missing, all zero, a term <= 0) get their noise
+    measured from their own pixels, with a warning (`g2r_jax.noise_fallback`).
     """
-    rows = {}
-    for info in infos:
-        if info.noise_profile is None:
-            continue
-        pairs = np.asarray(info.noise_profile, np.float64).reshape(-1, 2)
-        per_colour = np.repeat(pairs, 3, axis=0) if len(pairs) == 1 else pairs[:3]
-        per_position = per_colour[np.asarray(cfa_pattern)]
-        rows.setdefault(float(info.iso or 100.0), []).append(per_position)
-    if not rows:
-        return default_noise(dtype)
-    isos = np.array(sorted(rows))
-    table = np.stack([np.median(np.stack(rows[i]), axis=0) for i in isos])
-    return _sensor.NoiseModel(iso=jnp.asarray(isos, dtype), shot=jnp.asarray(table[..., 0], dtype),
-                              read=jnp.asarray(table[..., 1], dtype),
-                              iso_range=jnp.asarray([isos.min(), isos.max()], dtype))
+    from .noise_fallback import noise_and_source
+
+    return noise_and_source(infos, cfa_pattern, dtype)[0]
 
 
 def illuminant_model_for(chromaticities, colour_model, kind: str = "auto", seed: int = 0,
@@ -224,12 +214,17 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
         chromaticities = (_illuminants.neutral_to_chromaticity(np.stack(neutrals)) if neutrals
                           else np.zeros((0, 2)))
     illuminants = illuminant_model_for(chromaticities, colour_model, illuminant_model, seed, dtype)
-    noise = noise if noise is not None else noise_from_infos(infos, cfa, dtype)
+    noise_source = ""
+    if noise is None:
+        from .noise_fallback import noise_and_source
+
+        noise, noise_source = noise_and_source(infos, cfa, dtype)
     opcodes = tuple(sorted((k, bytes(v).hex()) for k, v in (reference.opcode_lists or {}).items()))
     info = ProfileInfo(name=name, unique_camera_model=reference.unique_camera_model or reference.model or name,
                        make=reference.make, model=reference.model,
                        calibration_illuminants=colour_model.calibration_illuminants,   # the model's order
-                       provenance=provenance or f"fitted by g2r_jax from {len(infos)} DNG file(s)",
+                       provenance=" ".join(filter(None, [provenance or f"fitted by g2r_jax from {len(infos)} DNG file(s)",
+                                                         noise_source and f"({noise_source})"])),
                        opcode_lists=opcodes)
     black, white, _ = levels_from_infos(infos)   # the CLI reports the note
     baseline = float(np.median([i.baseline_exposure for i in infos]))
