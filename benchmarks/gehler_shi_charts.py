@@ -12,12 +12,15 @@ too dark) are kept as NaN.
     python benchmarks/gehler_shi_charts.py [--data ../shared/data] -o OUT_DIR
 
 writes OUT_DIR/gehler_shi_5d.csv and OUT_DIR/gehler_shi_1d.csv (column `fold`: the image's test
-fold 0-2 of the standard split).
+fold 0-2 of the standard split), and OUT_DIR/gehler_shi_5d.json / gehler_shi_1d.json: sensor
+profiles with the camera's Adobe D65 ColorMatrix (../shared/data/cameras/gehler_shi_cameras.json),
+its levels, RGGB (Canon), and a Gaussian illuminant model fitted to its measured illuminants.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -25,6 +28,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from g2r_jax.charts import ChartSet, write_charts  # noqa: E402
+from g2r_jax.fit import fit_profile  # noqa: E402
+from g2r_jax.illuminants import neutral_to_chromaticity  # noqa: E402
+from g2r_jax.io.dng_info import DngInfo  # noqa: E402
+from g2r_jax.profile import save_profile  # noqa: E402
 
 BLACK_5D = 129.0
 CAMERAS = {"5d": ("Canon EOS 5D", slice(86, 568), BLACK_5D), "1d": ("Canon EOS-1D", slice(0, 86), 0.0)}
@@ -54,6 +61,22 @@ def charts_for(release: dict, camera: str) -> ChartSet:
                     source=f"Gehler-Shi {CAMERAS[camera][0]}")
 
 
+def adobe_profile(cameras: dict, camera: str, charts: ChartSet):
+    """Sensor profile of one Gehler-Shi camera from its Adobe D65 ColorMatrix (one matrix)."""
+    name, _, black = CAMERAS[camera]
+    tags = cameras[name]
+    matrix = np.reshape(tags["color_matrix_d65"], (3, 3)) / float(tags["scale"])
+    info = DngInfo(path=name, unique_camera_model=name, make="Canon", model=name, calibration_illuminants=(21,),
+                   color_matrices=(matrix,), cfa_pattern=(0, 1, 1, 2), black_level=np.full(4, black),
+                   white_level=float(tags["white_level"]))
+    return fit_profile([info], name=f"gehler_shi_{camera}", illuminant_model="gaussian",
+                       chromaticities=neutral_to_chromaticity(charts.illuminant), provenance=(
+        f"{name}: Adobe DNG Converter D65 ColorMatrix as tabulated in LibRaw (gehler_shi_cameras.json); "
+        f"illuminants: Gaussian + hull of the {len(charts)} measured Gehler-Shi illuminants of this camera "
+        f"(Gehler et al. CVPR 2008, Shi & Funt re-processing); CFA RGGB; black {black:g}, white "
+        f"{tags['white_level']}; no noise model."))
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", default=str(Path(__file__).resolve().parents[1] / ".." / "shared" / "data"),
@@ -67,9 +90,11 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     release = load_release(folder)
+    cameras = json.loads((Path(args.data) / "cameras" / "gehler_shi_cameras.json").read_text())
     for camera in CAMERAS:
         charts = charts_for(release, camera)
         write_charts(out / f"gehler_shi_{camera}.csv", charts)
+        save_profile(adobe_profile(cameras, camera, charts), out / f"gehler_shi_{camera}.json")
         print(f"{out / f'gehler_shi_{camera}.csv'}: {len(charts)} images, "
               f"{int(np.isnan(charts.patches).any(axis=2).sum())} NaN patches")
     return 0

@@ -134,14 +134,18 @@ def summarise(errors) -> dict:
             "patch_median": np.nanmedian(errors, axis=0).tolist(), "n_images": int(errors.shape[0])}
 
 
-def colour_model_errors(model, charts: _charts.ChartSet, chart_linear=None) -> np.ndarray:
-    """`patch_errors` of `predict_patches` (float64) for a colour model."""
+def predict_patches_np(model, charts: _charts.ChartSet, chart_linear=None) -> np.ndarray:
+    """`predict_patches` in float64 for the measured neutrals of `charts`: (N, 24, 3)."""
     chart_linear = _charts.chart_linear_srgb() if chart_linear is None else chart_linear
     with enable_x64():
         model64 = jax.tree_util.tree_map(lambda a: jnp.asarray(a, jnp.float64) if isinstance(a, jax.Array) else a, model)
-        predicted = np.asarray(predict_patches(model64, jnp.asarray(charts.illuminant, jnp.float64),
-                                               jnp.asarray(chart_linear, jnp.float64)))
-    return patch_errors(predicted, charts)
+        return np.asarray(predict_patches(model64, jnp.asarray(charts.illuminant, jnp.float64),
+                                          jnp.asarray(chart_linear, jnp.float64)))
+
+
+def colour_model_errors(model, charts: _charts.ChartSet, chart_linear=None) -> np.ndarray:
+    """`patch_errors` (N, 24) of `predict_patches` (float64) for a colour model."""
+    return patch_errors(predict_patches_np(model, charts, chart_linear), charts)
 
 
 # --------------------------------------------------------------------------------------- refit
@@ -251,3 +255,36 @@ def cross_validated_refit(profile, charts: _charts.ChartSet, folds, *, chart_lin
         fold_after.append(summarise(after[test])["chromatic_mean"])
         models.append(model)
     return {"before": before, "after": after, "fold_before": fold_before, "fold_after": fold_after, "models": models}
+
+
+def rendered_delta_E(colour_model, charts: _charts.ChartSet, chart_linear=None) -> np.ndarray:
+    """CIEDE2000 (N, 24) between the measured patches as a DNG renderer shows them and the chart.
+
+    The renderer's white balance: camera RGB -> XYZ_D50 by CameraToXYZ_D50 at the white of the
+    image's measured neutral (AsShotNeutral), Bradford D50 -> D65 (`dng.matrix_XYZ_D65_to_camera`
+    inverted); one exposure scale per image (least squares on Y over the usable neutral patches);
+    CIE Lab under D65 against the chart's XYZ (colour-science `delta_E`, CIE 2000). NaN where unusable.
+    """
+    import colour
+
+    chart_linear = _charts.chart_linear_srgb() if chart_linear is None else np.asarray(chart_linear)
+    with enable_x64():
+        model64 = jax.tree_util.tree_map(lambda a: jnp.asarray(a, jnp.float64) if isinstance(a, jax.Array) else a,
+                                         colour_model)
+
+        def to_xyz(neutral):
+            neutral = neutral / neutral[1]
+            xy, _ = _dng.camera_neutral_to_xy(neutral, model64, throw=False)
+            return jnp.linalg.inv(_dng.matrix_XYZ_D65_to_camera(xy, model64))
+
+        camera_to_xyz = np.asarray(jax.vmap(to_xyz)(jnp.asarray(charts.illuminant, jnp.float64)))
+    XYZ = np.einsum("nij,npj->npi", camera_to_xyz, charts.patches)
+    XYZ_in = chart_linear @ np.asarray(_colour.MATRIX_SRGB_TO_XYZ).T
+    neutral_Y = XYZ[:, _charts.NEUTRAL, 1]
+    target_Y = XYZ_in[_charts.NEUTRAL, 1][None]
+    usable = np.isfinite(neutral_Y)
+    scale = (np.sum(np.where(usable, neutral_Y * target_Y, 0), 1)
+             / np.sum(np.where(usable, neutral_Y, 0) ** 2, 1))
+    white = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
+    lab = colour.XYZ_to_Lab(XYZ * scale[:, None, None], white)
+    return np.asarray(colour.delta_E(lab, colour.XYZ_to_Lab(XYZ_in, white)[None], method="CIE 2000"))

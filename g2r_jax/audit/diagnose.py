@@ -16,9 +16,9 @@ from .scenes import scene_set
 from .vocabulary import CAUSES, UNEXPLAINED
 
 
-def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, seed: int = 0,
+def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = None, seed: int = 0,
              alpha: float = 0.01, folds: int = 3, n_permutations: int = 2000, progress=None,
-             causes=None, on_error=None) -> dict:
+             causes=None, on_error=None, charts=None) -> dict:
     """Compare measured DNGs with the profile's simulation; name, fit and validate causes.
 
     **Arguments:**
@@ -32,6 +32,8 @@ def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, 
       within each).
     - `folds`: cross-validation folds for the held-out gain.
     - `causes`: the causes to test (`Cause` instances); default: the registry `causes.REGISTRY`.
+    - `charts`: measured colour charts (a chart CSV path or a `charts.ChartSet`), the evidence of
+      the causes with `evidence = "charts"` (`colour_matrix`); `measured` may then be None.
 
     **Returns:** the report dict (REPORT.json's content): `findings` (one per tested statistic,
     significant first, by score), `unexplained`, `extended_profile` (the SensorProfile with every
@@ -42,6 +44,17 @@ def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, 
     started = time.perf_counter()
     say = progress or (lambda message: None)
     registry = tuple(REGISTRY if causes is None else causes)
+    chart_causes = [c for c in registry if getattr(c, "evidence", "files") == "charts"]
+    registry = tuple(c for c in registry if c not in chart_causes) if measured is not None else ()
+    tests = len(registry) + (len(chart_causes) if charts is not None else 0)
+    chart_report = _explain_with_charts(chart_causes, profile, charts, alpha / max(tests, 1), folds, n_permutations,
+                                        seed, say) if charts is not None else None
+    if measured is None:
+        if chart_report is None:
+            raise ValueError("nothing to audit: give measured DNG files, charts, or both")
+        chart_report.update(alpha=alpha, tests=tests, threshold_p=alpha / max(tests, 1), seed=seed,
+                            timing={"total_s": time.perf_counter() - started})
+        return chart_report
     by_name = {c.name: c for c in registry}
     files = loading.load_measured(measured, on_error=on_error)
     shapes = {m.shape for m, _ in files}
@@ -69,7 +82,6 @@ def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, 
     simulated_stats = simulate_stats(profile)
     timing = {"statistics_s": time.perf_counter() - started}
 
-    tests = len(registry)
     threshold = alpha / tests
 
     def test_all(causes, sim_stats, current):
@@ -85,6 +97,9 @@ def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, 
     # files, and if kept re-simulate with it and re-test the rest (a difference that another
     # cause's extension reproduces is not a finding of its own).
     extended, current_stats, unexplained, done = profile, simulated_stats, [], []
+    if chart_report is not None:   # colour first: the sensor causes are then tested against it
+        extended, unexplained, done = chart_report["profile"], chart_report["unexplained"], chart_report["findings"]
+        current_stats = simulate_stats(extended) if extended is not profile else simulated_stats
     remaining = list(registry)
     while remaining:
         results = test_all(remaining, current_stats, extended)
@@ -114,6 +129,7 @@ def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, 
                                 "evidence": top["evidence"] + "; the candidate's extension does not help on held-out files"})
             done.append(dict(top, cause=UNEXPLAINED, candidate=cause.name))
     # a statistic without an extension is a finding only when significant (as `unexplained`)
+    by_name.update({c.name: c for c in chart_causes})
     findings = [f for f in done if f["cause"] == UNEXPLAINED or by_name[f["cause"]].extensible]
     findings.sort(key=lambda f: (not f["significant"], -f["score"]))
     timing["total_s"] = time.perf_counter() - started
@@ -123,3 +139,41 @@ def diagnose(profile, measured, *, scenes=None, n_simulated: int | None = None, 
         "n_measured": len(files), "n_simulated": len(scene_images), "seed": seed,
         "size": [height, width], "timing": timing, "profile": extended,
     }
+
+
+def _explain_with_charts(chart_causes, profile, charts, threshold, folds, n_permutations, seed, say) -> dict:
+    """The causes whose evidence is measured charts: test each, cross-validate the strongest
+    significant one's extension over chart images and keep it if the held-out discrepancy drops
+    (the same order as for files). Returns a partial report (findings, unexplained, profile)."""
+    from ..charts import ChartSet, read_charts
+
+    charts = charts if isinstance(charts, ChartSet) else read_charts(charts)
+    say(f"testing {len(charts)} measured charts")
+    extended, unexplained, done, remaining = profile, [], [], list(chart_causes)
+    while remaining:
+        results = []
+        for cause in remaining:
+            finding = cause.test(charts, None, extended, n_permutations=n_permutations, seed=seed)
+            finding.update(significant=cause.is_significant(finding, threshold), params={}, gain=None)
+            results.append(finding)
+        results.sort(key=lambda f: (not f["significant"], -f["score"]))
+        top = results[0]
+        if not top["significant"]:
+            done.extend(results)
+            break
+        cause = next(c for c in remaining if c.name == top["cause"])
+        remaining.remove(cause)
+        say(f"cross-validating the {cause.name} extension on chart images")
+        top["gain"] = cause.cross_validate(charts, extended, folds=folds, seed=seed)
+        top["kept"] = top["gain"]["after"] < top["gain"]["before"]
+        if top["kept"]:
+            top["params"] = cause.fit(charts, None, extended, seed=seed)
+            extended = cause.apply(extended, top["params"])
+            done.append(top)
+        else:
+            unexplained.append({"statistic": top["statistic"], "candidate": cause.name, "score": top["score"],
+                                "evidence": top["evidence"] + "; the candidate's extension does not help on held-out images"})
+            done.append(dict(top, cause=UNEXPLAINED, candidate=cause.name))
+    return {"findings": sorted(done, key=lambda f: (not f["significant"], -f["score"])), "unexplained": unexplained,
+            "vocabulary": list(CAUSES), "n_measured": 0, "n_charts": len(charts), "n_simulated": 0,
+            "charts": charts.source, "profile": extended}

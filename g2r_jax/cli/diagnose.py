@@ -17,7 +17,9 @@ def _parser() -> argparse.ArgumentParser:
                     "name what the simulation gets wrong, fit the missing effects, measure the gain "
                     "on held-out files.")
     parser.add_argument("--profile", required=True, help="sensor profile (JSON path or shipped name)")
-    parser.add_argument("--measured", required=True, help="folder of measured DNG files of the camera")
+    parser.add_argument("--measured", help="folder of measured DNG files of the camera")
+    parser.add_argument("--charts", help="measured colour charts of the camera (chart CSV, see g2r_jax.charts): "
+                                         "tests and refits the colour matrices (cause colour_matrix)")
     parser.add_argument("--scenes", help="folder of scene images to simulate from (default: built-in "
                                          "dead-leaves scenes)")
     parser.add_argument("--report", required=True, help="REPORT.json to write")
@@ -54,7 +56,9 @@ def _run(args) -> int:
     report_path = Path(args.report)
     _enable_compilation_cache()
     profile = load_profile(args.profile)
-    paths = loading.measured_paths(args.measured)
+    if not args.measured and not args.charts:
+        raise ValueError("give --measured DNG_DIR, --charts CHARTS.csv, or both")
+    paths = loading.measured_paths(args.measured) if args.measured else None
     try:
         report_path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as error:
@@ -67,7 +71,7 @@ def _run(args) -> int:
         print(f"g2r-diagnose: error: {one_line(line)}", file=sys.stderr)
 
     result = diagnose(profile, paths, scenes=args.scenes, seed=args.seed, alpha=args.alpha,
-                      folds=args.folds, progress=say, on_error=report_bad_file)
+                      folds=args.folds, progress=say, on_error=report_bad_file, charts=args.charts)
     if args.extended_profile:
         save_profile(result["profile"], args.extended_profile)
         result["extended_profile"] = str(args.extended_profile)

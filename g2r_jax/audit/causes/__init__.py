@@ -28,7 +28,7 @@ Interface (see `base.Cause` for defaults):
 
 from __future__ import annotations
 
-from . import (banding, black_level, defective_pixels, exposure_distribution, green_imbalance,
+from . import (banding, black_level, colour_matrix, defective_pixels, exposure_distribution, green_imbalance,
                illuminant_distribution, lens_shading, noise_correlation, noise_model, white_level)
 from .base import Cause
 
@@ -43,6 +43,7 @@ REGISTRY: tuple[Cause, ...] = (
     defective_pixels.CAUSE,
     banding.CAUSE,
     noise_correlation.CAUSE,
+    colour_matrix.CAUSE,          # evidence: measured charts (diagnose(..., charts=...))
 )
 BY_NAME = {cause.name: cause for cause in REGISTRY}
 
