@@ -32,9 +32,11 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import io
 import math
 from pathlib import Path
+import warnings
 
 import numpy as np
 
@@ -189,16 +191,23 @@ def folds_of(charts: ChartSet, folds: int = 3, seed: int = 0) -> np.ndarray:
     return charts.folds if charts.folds is not None else assign_folds(len(charts), folds, seed)
 
 
-def chart_linear_srgb() -> np.ndarray:
-    """(24, 3) linear sRGB of the ColorChecker N Ohta reflectances under CIE D65 (white of a
-    perfect diffuser = Y 1), unclipped; see the module docstring for the source."""
+@functools.lru_cache(maxsize=1)
+def _chart_linear_srgb() -> np.ndarray:
     import colour
 
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
     d65 = colour.SDS_ILLUMINANTS["D65"]
     sds = colour.SDS_COLOURCHECKERS["ColorChecker N Ohta"]
-    XYZ = np.array([colour.sd_to_XYZ(sd, cmfs, d65) for sd in sds.values()]) / 100.0
+    with warnings.catch_warnings():   # colour-science notes that it aligns the spectra's range
+        warnings.simplefilter("ignore")
+        XYZ = np.array([colour.sd_to_XYZ(sd, cmfs, d65) for sd in sds.values()]) / 100.0
     return colour.XYZ_to_RGB(XYZ, colour.RGB_COLOURSPACES["sRGB"], apply_cctf_encoding=False)
+
+
+def chart_linear_srgb() -> np.ndarray:
+    """(24, 3) linear sRGB of the ColorChecker N Ohta reflectances under CIE D65 (white of a
+    perfect diffuser = Y 1), unclipped; see the module docstring for the source."""
+    return _chart_linear_srgb().copy()
 
 
 def chart_srgb() -> np.ndarray:

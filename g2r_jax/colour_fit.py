@@ -101,6 +101,7 @@ def simulate_patches(profile, neutrals, chart_srgb=None, *, recipe: str = "dng",
         keys, images, profile, neutral=n, exposure_gain=1.0, noise=noise, effects=False,
         quantize=False, recipe=recipe, transfer=transfer)[0])
     out = []
+    batch = min(batch, len(neutrals))
     for start in range(0, len(neutrals), batch):
         n = neutrals[start:start + batch]
         pad = batch - len(n)
@@ -158,6 +159,21 @@ def _normalise_to_white(matrix, code):
     return matrix / np.max(response)
 
 
+PAD_IMAGES = 64
+_SOLVER = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-8)
+
+
+def _refit_residuals(pair, args):
+    """Unit-vector differences predicted - measured (masked), for `refit_colour_matrices`."""
+    neutrals, chart, target, mask, cct, calibration, balance = args
+    model = _dng.DngColourModel(calibration_cct=cct, color_matrix=pair, camera_calibration=calibration,
+                                forward_matrix=jnp.stack([jnp.eye(3, dtype=pair.dtype)] * 2),
+                                analog_balance=balance, has_forward_matrix=False)
+    predicted = predict_patches(model, neutrals, chart)
+    unit = predicted / jnp.linalg.norm(predicted, axis=-1, keepdims=True)
+    return ((unit - target) * mask).reshape(-1)
+
+
 def refit_colour_matrices(colour_model: _dng.DngColourModel, charts: _charts.ChartSet, *,
                           calibration_illuminants=REFIT_ILLUMINANTS, chart_linear=None,
                           patches=None, max_steps: int = 60, dtype=np.float32):
@@ -191,18 +207,16 @@ def refit_colour_matrices(colour_model: _dng.DngColourModel, charts: _charts.Cha
         chart = jnp.asarray(chart_linear[patches], jnp.float64)
         target, mask = jnp.asarray(unit_measured), jnp.asarray(valid[..., None], jnp.float64)
 
-        def model_of(pair):
-            return _dng.DngColourModel(calibration_cct=cct_sorted, color_matrix=pair,
-                                       camera_calibration=jnp.asarray(calibration), forward_matrix=jnp.stack([jnp.eye(3)] * 2),
-                                       analog_balance=jnp.asarray(balance), has_forward_matrix=False)
-
-        def residuals(pair, _):
-            predicted = predict_patches(model_of(pair), neutrals, chart)
-            unit = predicted / jnp.linalg.norm(predicted, axis=-1, keepdims=True)
-            return ((unit - target) * mask).reshape(-1)
-
-        solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-8)
-        solution = optx.least_squares(residuals, solver, jnp.asarray(initial), max_steps=max_steps, throw=False)
+        # pad the images to a multiple of PAD_IMAGES (masked out) so that fits on folds of
+        # slightly different sizes reuse one compiled solver
+        padded = -(-len(neutrals) // PAD_IMAGES) * PAD_IMAGES
+        extra = padded - len(neutrals)
+        neutrals = jnp.concatenate([neutrals, jnp.ones((extra, 3), jnp.float64)])
+        target = jnp.concatenate([target, jnp.ones((extra,) + target.shape[1:], jnp.float64)])
+        mask = jnp.concatenate([mask, jnp.zeros((extra,) + mask.shape[1:], jnp.float64)])
+        args = (neutrals, chart, target, mask, cct_sorted, jnp.asarray(calibration), jnp.asarray(balance))
+        solution = optx.least_squares(_refit_residuals, _SOLVER, jnp.asarray(initial), args=args,
+                                      max_steps=max_steps, throw=False)
         pair = np.asarray(solution.value)
     pair = np.stack([_normalise_to_white(pair[i], int(np.asarray(codes)[order][i])) for i in range(2)])
     fitted = _dng.DngColourModel.from_tags(np.asarray(codes)[order].tolist(), list(pair),
@@ -225,11 +239,9 @@ def with_colour(profile, colour_model, calibration_illuminants, note: str = ""):
     """`profile` with another colour model (and its calibration illuminant codes)."""
     import dataclasses
 
-    from .profile import replace
-
     info = dataclasses.replace(profile.info, calibration_illuminants=tuple(int(c) for c in calibration_illuminants),
                                provenance=(profile.info.provenance + (" " if profile.info.provenance else "") + note).strip())
-    return replace(profile, colour=colour_model, info=info)
+    return dataclasses.replace(profile, colour=colour_model, info=info)   # info is static: not a tree_at leaf
 
 
 def cross_validated_refit(profile, charts: _charts.ChartSet, folds, *, chart_linear=None, max_steps: int = 60,

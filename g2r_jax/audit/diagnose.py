@@ -137,6 +137,7 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         "findings": findings, "unexplained": unexplained,
         "vocabulary": list(CAUSES), "alpha": alpha, "tests": tests, "threshold_p": threshold,
         "n_measured": len(files), "n_simulated": len(scene_images), "seed": seed,
+        **({"n_charts": chart_report["n_charts"], "charts": chart_report["charts"]} if chart_report else {}),
         "size": [height, width], "timing": timing, "profile": extended,
     }
 

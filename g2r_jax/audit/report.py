@@ -47,8 +47,13 @@ def write_json(report: dict, path) -> None:
 
 def summary(report: dict) -> str:
     """A readable summary: significant findings first, with their gain."""
-    lines = [f"g2r-diagnose: {report['n_measured']} measured vs {report['n_simulated']} simulated files "
-             f"({report['size'][0]}x{report['size'][1]}), family-wise alpha {report['alpha']}"]
+    evidence = []
+    if report.get("n_measured"):
+        evidence.append(f"{report['n_measured']} measured vs {report['n_simulated']} simulated files "
+                        f"({report['size'][0]}x{report['size'][1]})")
+    if report.get("n_charts"):
+        evidence.append(f"{report['n_charts']} measured chart images")
+    lines = [f"g2r-diagnose: {', '.join(evidence)}, family-wise alpha {report['alpha']}"]
     significant = [f for f in report["findings"] if f["significant"]]
     if not significant:
         lines.append("no significant difference between the measured files and the simulation")
