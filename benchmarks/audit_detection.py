@@ -85,7 +85,7 @@ def main(argv=None):
     parser.add_argument("--causes", default="all", help="comma-separated causes, or 'all'")
     parser.add_argument("--clean-seeds", type=int, default=None, help="clean sets per profile (default: seeds)")
     args = parser.parse_args(argv)
-    from g2r_jax.audit import CAUSES
+    from g2r_jax.audit.vocabulary import FILE_CAUSES as CAUSES   # hidden in DNG files
 
     profiles = args.profile.split(",")
     causes = list(CAUSES) if args.causes == "all" else args.causes.split(",")

@@ -9,7 +9,8 @@ import os
 import numpy as np
 import pytest
 
-from g2r_jax.audit import CAUSES, diagnose, synthetic
+from g2r_jax.audit import diagnose, synthetic
+from g2r_jax.audit.vocabulary import FILE_CAUSES as CAUSES  # colour_matrix: tests/test_colour_charts.py
 from audit_helpers import assert_parameter_close, hidden_effect, measured_set, significant
 
 SEED = int(os.environ.get("G2R_AUDIT_TEST_SEED", "20240607"))

@@ -13,6 +13,8 @@ from __future__ import annotations
 from .causes import REGISTRY
 
 CAUSES = tuple(c.name for c in REGISTRY if c.extensible)
+# causes whose evidence is measured DNG files (the others, e.g. colour_matrix, read measured charts)
+FILE_CAUSES = tuple(c.name for c in REGISTRY if c.extensible and getattr(c, "evidence", "files") == "files")
 UNEXPLAINED = "unexplained"
 STATISTICS = {c.name: c.statistic for c in REGISTRY}
 FLOOR = {c.name: c.floor for c in REGISTRY}
