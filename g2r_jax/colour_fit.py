@@ -26,6 +26,7 @@ chromatic patches are 1-18 of the ColorChecker, neutral 19-24.
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -165,10 +166,8 @@ _SOLVER = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-8)
 
 def _refit_residuals(pair, args):
     """Unit-vector differences predicted - measured (masked), for `refit_colour_matrices`."""
-    neutrals, chart, target, mask, cct, calibration, balance = args
-    model = _dng.DngColourModel(calibration_cct=cct, color_matrix=pair, camera_calibration=calibration,
-                                forward_matrix=jnp.stack([jnp.eye(3, dtype=pair.dtype)] * 2),
-                                analog_balance=balance, has_forward_matrix=False)
+    neutrals, chart, target, mask, template = args
+    model = eqx.tree_at(lambda m: m.color_matrix, template, pair)
     predicted = predict_patches(model, neutrals, chart)
     unit = predicted / jnp.linalg.norm(predicted, axis=-1, keepdims=True)
     return ((unit - target) * mask).reshape(-1)
@@ -202,7 +201,8 @@ def refit_colour_matrices(colour_model: _dng.DngColourModel, charts: _charts.Cha
             raise ValueError(f"need two calibration illuminants of different CCT, got {codes}")
         initial = start[np.argsort(np.asarray(colour_model.calibration_cct))]
         order = np.argsort(ccts)
-        cct_sorted = jnp.asarray(np.asarray(ccts, np.float64)[order])
+        template = _dng.DngColourModel.from_tags(list(codes), list(initial[np.argsort(order)]),
+                                                 list(calibration[np.argsort(order)]), (), balance, dtype=np.float64)
         neutrals = jnp.asarray(charts.illuminant, jnp.float64)
         chart = jnp.asarray(chart_linear[patches], jnp.float64)
         target, mask = jnp.asarray(unit_measured), jnp.asarray(valid[..., None], jnp.float64)
@@ -214,7 +214,7 @@ def refit_colour_matrices(colour_model: _dng.DngColourModel, charts: _charts.Cha
         neutrals = jnp.concatenate([neutrals, jnp.ones((extra, 3), jnp.float64)])
         target = jnp.concatenate([target, jnp.ones((extra,) + target.shape[1:], jnp.float64)])
         mask = jnp.concatenate([mask, jnp.zeros((extra,) + mask.shape[1:], jnp.float64)])
-        args = (neutrals, chart, target, mask, cct_sorted, jnp.asarray(calibration), jnp.asarray(balance))
+        args = (neutrals, chart, target, mask, template)
         solution = optx.least_squares(_refit_residuals, _SOLVER, jnp.asarray(initial), args=args,
                                       max_steps=max_steps, throw=False)
         pair = np.asarray(solution.value)

@@ -113,6 +113,7 @@ def test_closed_form_prediction_is_unprocess():
 
 def test_implicit_derivative_of_the_white_point():
     """d(prediction)/d(matrix) through the DNG white-point solve matches finite differences."""
+    import equinox as eqx
     import jax
     import jax.numpy as jnp
 
@@ -126,9 +127,7 @@ def test_implicit_derivative_of_the_white_point():
         chart = jnp.asarray(C.chart_linear_srgb()[:3])
 
         def f(p):
-            model = DngColourModel(calibration_cct=base.calibration_cct, color_matrix=p,
-                                   camera_calibration=base.camera_calibration, forward_matrix=base.forward_matrix,
-                                   analog_balance=base.analog_balance)
+            model = eqx.tree_at(lambda m: m.color_matrix, base, p)
             out = F.predict_patches(model, neutral, chart)
             return (out / jnp.linalg.norm(out, axis=-1, keepdims=True)).reshape(-1)
 
