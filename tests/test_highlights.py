@@ -27,7 +27,7 @@ def profile():
     return load_profile("Canon600D")
 
 
-@pytest.mark.parametrize("cct", [2900.0, 6500.0])
+@pytest.mark.parametrize("cct", [2900.0, pytest.param(6500.0, marks=pytest.mark.slow)])
 def test_default_records_grey_at_the_neutral_and_renders_grey(tmp_path, profile, cct):
     neutral = hl.neutral_for(profile, cct)
     default = hl.measure(profile, neutral, 0.5, None, tmp_path)       # None: the default for recipe 'dng'
