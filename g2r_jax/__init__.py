@@ -4,13 +4,49 @@
     profile = g2r_jax.load_profile("s20fe_night")
     convert = jax.jit(jax.vmap(lambda key, image: g2r_jax.unprocess(key, image, profile)))
     mosaics, metadata = convert(jax.random.split(jax.random.PRNGKey(0), len(images)), images)
+
+The names below are imported on first use (PEP 562), so that `import g2r_jax.cli...` and a
+command's `--help` do not pay for importing JAX and colour-science.
 """
 
-from .dng import DngColourModel, camera_neutral_to_xy, camera_neutrals_to_xy, xy_to_camera_neutral
-from .fit import fit_profile
-from .illuminants import IlluminantModel, sample_neutrals
-from .profile import ProfileError, SensorProfile, load_profile, save_profile, shipped_profiles
-from .unprocess import unprocess, unprocess_batch
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+
+_EXPORTS = {
+    "DngColourModel": "dng", "camera_neutral_to_xy": "dng", "camera_neutrals_to_xy": "dng",
+    "xy_to_camera_neutral": "dng", "fit_profile": "fit", "IlluminantModel": "illuminants",
+    "sample_neutrals": "illuminants", "ProfileError": "profile", "SensorProfile": "profile",
+    "load_profile": "profile", "save_profile": "profile", "shipped_profiles": "profile",
+    "unprocess": "unprocess", "unprocess_batch": "unprocess",
+}
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_EXPORTS))
+
+
+class _Package(types.ModuleType):
+    """Keeps `g2r_jax.unprocess` the function: importing the submodule of the same name would
+    otherwise bind the package attribute to the module (the eager import used to rebind it)."""
+
+    def __setattr__(self, name, value):
+        if isinstance(value, types.ModuleType) and _EXPORTS.get(name) == name and hasattr(value, name):
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 def diagnose(*args, **kwargs):

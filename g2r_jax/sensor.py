@@ -14,6 +14,7 @@ imbalance, radial lens/colour shading, defective pixels and row/column banding (
 
 from __future__ import annotations
 
+import functools
 from typing import Optional
 
 import equinox as eqx
@@ -118,22 +119,25 @@ def noise_level_at(iso, noise: NoiseModel):
     return noise_shape.level_variance_at(iso, (noise.iso, noise.level_variance))
 
 
-def add_noise(key, mosaic, shot, read, *, level_knots=None, level_variance=None, correlation_kernel=None):
+def add_noise(key, mosaic, shot, read, *, level_knots=None, level_variance=None, correlation_kernel=None,
+              valid_shape=None):
     """Heteroscedastic Gaussian noise: x + sqrt(max(shot[p] * x + read[p], 0)) * N(0, 1).
 
-    The draws are those of `jax.random.normal(key, (4, H/2, W/2))` on the planes layout, each
-    read at its own pixel, so the noise does not depend on the layout the mosaic is held in.
+    The draws are `standard_normal(key, (H, W))`, one per pixel (`standard_normal_planes`),
+    so the noise does not depend on the layout the mosaic is held in; `valid_shape`: (h, w) of
+    the image in the top-left of a zero-padded mosaic (the image's own draws).
     Optional shape (`g2r_jax.noise_shape`): `level_knots` (K,) with `level_variance` (4, K) at
     this ISO replace shot * x + read by that level function; `correlation_kernel` (4, 3, 3)
     filters the normals within each CFA plane (unit sum of squares: same variance)."""
     if level_variance is not None or correlation_kernel is not None:
-        return _add_shaped_noise(key, mosaic, shot, read, level_knots, level_variance, correlation_kernel)
+        return _add_shaped_noise(key, mosaic, shot, read, level_knots, level_variance, correlation_kernel,
+                                 valid_shape)
     variance = jnp.maximum(per_position(shot, mosaic.shape) * jnp.maximum(mosaic, 0)
                            + per_position(read, mosaic.shape), 0.0)
-    return mosaic + jnp.sqrt(variance) * standard_normal_planes(key, mosaic.shape, mosaic.dtype)
+    return mosaic + jnp.sqrt(variance) * standard_normal_planes(key, mosaic.shape, mosaic.dtype, valid_shape=valid_shape)
 
 
-def _add_shaped_noise(key, mosaic, shot, read, level_knots, level_variance, correlation_kernel):
+def _add_shaped_noise(key, mosaic, shot, read, level_knots, level_variance, correlation_kernel, valid_shape=None):
     """`add_noise` with a noise level function and/or a correlation kernel, on the planes layout
     (same normals as `add_noise`: pixel (y, x) draws its plane element's normal)."""
     from . import noise_shape
@@ -143,84 +147,121 @@ def _add_shaped_noise(key, mosaic, shot, read, level_knots, level_variance, corr
         variance = noise_shape.level_function_planes(planes, level_knots, level_variance)
     else:
         variance = shot[:, None, None] * jnp.maximum(planes, 0) + read[:, None, None]
-    normals = to_planes(standard_normal_planes(key, mosaic.shape, mosaic.dtype))
+    normals = to_planes(standard_normal_planes(key, mosaic.shape, mosaic.dtype, valid_shape=valid_shape))
     if correlation_kernel is not None:
         normals = noise_shape.correlate_planes(normals, correlation_kernel.astype(mosaic.dtype))
     return from_planes(planes + jnp.sqrt(jnp.maximum(variance, 0.0)) * normals)
 
 
 # ----------------------------------------------------------------------------- fast normal draws
+#
+# The noise stream. Each pixel's normal is a pure function of (key, counter), the counter being
+# the element's flat index, so draws do not depend on batching, sharding or padding:
+#   bits   = mix32(mix32(counter ^ k0) + k1)          (k0, k1: the key's two 32-bit words)
+#   v      = ((bits >> 8 & 0x7FFFFF) + 1/2) / 2**24   (23 bits: a probability in (0, 1/2))
+#   normal = -Q(v) if the top bit is set else Q(v)    (Q: the standard normal quantile, < 0)
+# mix32 is Wellons' "lowbias32" integer hash (two xorshift-multiply rounds; hash-prospector,
+# github.com/skeeto/hash-prospector). Q is interpolated linearly in v between 64 points per
+# octave of v (a 1537-entry table of scipy's `ndtri`, indexed by the float's exponent and top
+# mantissa bits; error < 2e-5, tails to |z| = 5.42 at v = 2**-25). Every operation is an
+# element-wise integer/float operation or a look-up in a small table, which XLA fuses into the
+# pixel loop and vectorises. Until this change the stream was `jax.random.normal`'s
+# (Threefry-2x32, 20 rounds, then erfinv): XLA's CPU `erf_inv`/`log` run per element (scalar),
+# and noise then cost 4.5x the rest of the pipeline. Noisy outputs differ since.
 
-_THREEFRY_ROTATIONS = ((13, 15, 26, 6), (17, 29, 16, 24))
-_THREEFRY_PARITY = 0x1BD11BDA
-
-
-def _threefry2x32(k0, k1, x0, x1):
-    """Threefry-2x32 with 20 rounds (Salmon et al., "Parallel random numbers: as easy as
-    1, 2, 3", SC 2011), written out round by round as JAX's own reference lowering is."""
-    keys = (k0, k1, k0 ^ k1 ^ np.uint32(_THREEFRY_PARITY))
-    x0, x1 = x0 + keys[0], x1 + keys[1]
-    for block in range(5):
-        for rotation in _THREEFRY_ROTATIONS[block % 2]:
-            x0 = x0 + x1
-            x1 = x0 ^ ((x1 << np.uint32(rotation)) | (x1 >> np.uint32(32 - rotation)))
-        x0 = x0 + keys[(block + 1) % 3]
-        x1 = x1 + keys[(block + 2) % 3] + np.uint32(block + 1)
-    return x0, x1
-
-
-def _fused_normal_applies(key, shape, dtype) -> bool:
-    if jnp.dtype(dtype) != jnp.float32 or not jax.config.jax_threefry_partitionable:
-        return False
-    if int(np.prod(shape)) >= 2**32:
-        return False
-    if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
-        return str(jax.random.key_impl(key)) == "threefry2x32"
-    return key.shape == (2,) and key.dtype == jnp.uint32 and jax.config.jax_default_prng_impl == "threefry2x32"
+_MIX_MULTIPLIERS = (0x21F0AAAD, 0x735A2D97)      # lowbias32 (Wellons, hash-prospector)
+_QUANTILE_POINTS_PER_OCTAVE_BITS = 6             # 64 points per octave of v
+_QUANTILE_LOWEST_EXPONENT = 127 - 25             # biased float32 exponent of 2**-25, the smallest v
 
 
-def standard_normal(key, shape, dtype=jnp.float32):
-    """`jax.random.normal(key, shape, dtype)`, bit for bit, as one element-wise expression.
-
-    JAX's CPU lowering of Threefry runs its 20 rounds as a 5-step loop over whole arrays, so a
-    12-MP draw makes several passes through memory and cannot fuse with the noise that uses it.
-    Here the same counter-based bits (JAX's partitionable scheme: the element's flat index as the
-    counter, the two output words xor-ed), the same mantissa trick to a uniform in (-1, 1) and the
-    same sqrt(2) erfinv(u) are written as plain element-wise operations, which XLA fuses with the
-    consumer. Other key implementations, dtypes or settings fall back to `jax.random.normal`.
-    """
-    shape = tuple(shape)
-    if not _fused_normal_applies(key, shape, dtype):
-        return jax.random.normal(key, shape, dtype)
-    return _normal_from_counter(key, jax.lax.iota(jnp.uint32, int(np.prod(shape))).reshape(shape))
+def _mix32(x):
+    """lowbias32: a bijective 32-bit integer hash with near-ideal avalanche (Wellons)."""
+    x = x ^ (x >> np.uint32(16))
+    x = x * np.uint32(_MIX_MULTIPLIERS[0])
+    x = x ^ (x >> np.uint32(15))
+    x = x * np.uint32(_MIX_MULTIPLIERS[1])
+    return x ^ (x >> np.uint32(15))
 
 
-def standard_normal_planes(key, mosaic_shape, dtype=jnp.float32):
-    """`from_planes(jax.random.normal(key, (4, H/2, W/2), dtype))`, bit for bit, computed in
-    place: pixel (y, x) takes the draw of its plane element, whose flat index (the Threefry
-    counter) is p * (H/2 * W/2) + (y // 2) * (W/2) + x // 2 with p its tile position."""
-    height, width = mosaic_shape
-    planes_shape = (4, height // 2, width // 2)
-    if not _fused_normal_applies(key, planes_shape, dtype):
-        return from_planes(jax.random.normal(key, planes_shape, dtype))
-    rows = jax.lax.broadcasted_iota(jnp.uint32, mosaic_shape, 0)
-    cols = jax.lax.broadcasted_iota(jnp.uint32, mosaic_shape, 1)
-    half_h, half_w = np.uint32(height // 2), np.uint32(width // 2)
-    position = (rows & np.uint32(1)) * np.uint32(2) + (cols & np.uint32(1))
-    counter = position * (half_h * half_w) + (rows >> np.uint32(1)) * half_w + (cols >> np.uint32(1))
-    return _normal_from_counter(key, counter)
+def _key_words(key):
+    """The key as two uint32 words (k0, k1): Threefry keys are two words; longer key data (other
+    `jax.random` implementations) is folded by xor into two."""
+    data = jax.random.key_data(key) if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key) else key
+    data = jnp.asarray(data).astype(jnp.uint32)
+    if data.shape[-1] == 2:
+        return data[..., 0], data[..., 1]
+    words = data.reshape(data.shape[:-1] + (-1, 2))
+    folded = jax.lax.reduce(words, np.uint32(0), jax.lax.bitwise_xor, (words.ndim - 2,))
+    return folded[..., 0], folded[..., 1]
+
+
+def _counter_bits(key, counter):
+    """32 random bits for each uint32 `counter` under `key`."""
+    k0, k1 = _key_words(key)
+    return _mix32(_mix32(counter ^ k0) + k1)
+
+
+@functools.lru_cache(maxsize=None)
+def _quantile_table() -> np.ndarray:
+    """Q(v) at the table points: v = the float32 whose bits are (index + lowest exponent * 64) << 17."""
+    from scipy.special import ndtri
+
+    shift = 23 - _QUANTILE_POINTS_PER_OCTAVE_BITS
+    index = np.arange((126 - _QUANTILE_LOWEST_EXPONENT << _QUANTILE_POINTS_PER_OCTAVE_BITS) + 1, dtype=np.int64)
+    points = ((index + (_QUANTILE_LOWEST_EXPONENT << _QUANTILE_POINTS_PER_OCTAVE_BITS)) << shift)
+    return ndtri(points.astype(np.int32).view(np.float32).astype(np.float64)).astype(np.float32)
+
+
+def _normal_from_bits(bits):
+    """Standard normal float32 from 32 random bits (see the stream above)."""
+    shift = 23 - _QUANTILE_POINTS_PER_OCTAVE_BITS
+    table = jnp.asarray(_quantile_table())
+    mantissa = ((bits >> np.uint32(8)) & np.uint32(0x7FFFFF)).astype(jnp.int32)
+    v = (mantissa.astype(jnp.float32) + np.float32(0.5)) * np.float32(2.0**-24)         # exact, < 1/2
+    v_bits = jax.lax.bitcast_convert_type(v, jnp.int32)
+    index = (v_bits >> shift) - (_QUANTILE_LOWEST_EXPONENT << _QUANTILE_POINTS_PER_OCTAVE_BITS)
+    fraction = (v_bits & ((1 << shift) - 1)).astype(jnp.float32) * np.float32(2.0**-shift)
+    low, high = table[index], table[index + 1]
+    quantile = low + (high - low) * fraction
+    return jnp.where((bits >> np.uint32(31)) == np.uint32(1), -quantile, quantile)
 
 
 def _normal_from_counter(key, counter):
-    """The normal draw of JAX's partitionable Threefry scheme at flat index `counter` (uint32)."""
-    k0, k1 = jax.random.key_data(key) if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key) else key
-    word0, word1 = _threefry2x32(k0, k1, jnp.zeros_like(counter), counter)
-    bits = word0 ^ word1
-    # 23 random mantissa bits under exponent 0: a float in [1, 2), then [0, 1), then (-1, 1).
-    unit = jax.lax.bitcast_convert_type((bits >> np.uint32(9)) | np.uint32(0x3F800000), jnp.float32) - np.float32(1)
-    low = np.nextafter(np.float32(-1), np.float32(0))
-    uniform = jnp.maximum(low, unit * (np.float32(1) - low) + low)
-    return np.float32(np.sqrt(2)) * jax.lax.erf_inv(uniform)
+    """The stream's standard normal (float32) at uint32 `counter` under `key`."""
+    return _normal_from_bits(_counter_bits(key, counter))
+
+
+def _check_count(count: int) -> None:
+    if count >= 2**32:
+        raise ValueError(f"{count} draws exceed the 2**32 counters of one key; split the key")
+
+
+def standard_normal(key, shape, dtype=jnp.float32):
+    """Standard normal draws of `shape`: element i (flat, C order) is the stream's draw at
+    counter i under `key` (see the stream above), computed in float32 and cast to `dtype`.
+
+    Element-wise, so under jit it fuses with its consumer; vmap over keys gives each key its own
+    draws, identical to drawing key by key."""
+    shape = tuple(shape)
+    count = int(np.prod(shape))
+    _check_count(count)
+    counter = jax.lax.iota(jnp.uint32, count).reshape(shape)
+    return _normal_from_counter(key, counter).astype(dtype)
+
+
+def standard_normal_planes(key, mosaic_shape, dtype=jnp.float32, *, valid_shape=None):
+    """The noise draws of an (H, W) mosaic: pixel (y, x) takes the stream's draw at counter
+    y * W + x, i.e. `standard_normal(key, (H, W), dtype)`; the name stays from the time the
+    draws were made in the CFA planes layout.
+
+    With `valid_shape` (h, w) (ints or traced), the counter is y * w + x: the top-left h x w of a
+    larger mosaic gets exactly the draws of an h x w mosaic (for zero-padded batches)."""
+    _check_count(int(np.prod(mosaic_shape)))
+    width = mosaic_shape[1] if valid_shape is None else valid_shape[1]
+    rows = jax.lax.broadcasted_iota(jnp.uint32, mosaic_shape, 0)
+    cols = jax.lax.broadcasted_iota(jnp.uint32, mosaic_shape, 1)
+    counter = rows * jnp.asarray(width).astype(jnp.uint32) + cols
+    return _normal_from_counter(key, counter).astype(dtype)
 
 
 def per_position(values, mosaic_shape):
@@ -236,12 +277,19 @@ def per_position(values, mosaic_shape):
     return jnp.where(odd_row, jnp.where(odd_col, values[3], values[2]), jnp.where(odd_col, values[1], values[0]))
 
 
-def radial_distance_squared_mosaic(mosaic_shape, dtype=jnp.float32):
-    """r^2 of every pixel (H, W); r = distance from the centre / half-diagonal (1 in the corners)."""
-    height, width = mosaic_shape
-    rows = jnp.arange(height, dtype=dtype) - (height - 1) / 2
-    cols = jnp.arange(width, dtype=dtype) - (width - 1) / 2
-    return (rows[:, None] ** 2 + cols[None, :] ** 2) / ((height - 1) ** 2 / 4 + (width - 1) ** 2 / 4)
+def radial_distance_squared_mosaic(mosaic_shape, dtype=jnp.float32, *, valid_shape=None):
+    """r^2 of every pixel (H, W); r = distance from the centre / half-diagonal (1 in the corners).
+
+    With `valid_shape` (h, w) (ints or traced int32), the image is the top-left h x w of a
+    zero-padded mosaic and r is measured for that image. Computed as the integer ratio
+    ((2y - h + 1)^2 + (2x - w + 1)^2) / ((h - 1)^2 + (w - 1)^2), converted to float only for the
+    final division: the same bits whether the sizes are constants or traced (sizes < 32768)."""
+    height, width = mosaic_shape if valid_shape is None else valid_shape
+    height, width = jnp.asarray(height, jnp.int32), jnp.asarray(width, jnp.int32)
+    rows = 2 * jax.lax.broadcasted_iota(jnp.int32, mosaic_shape, 0) - (height - 1)
+    cols = 2 * jax.lax.broadcasted_iota(jnp.int32, mosaic_shape, 1) - (width - 1)
+    squared_diagonal = (height - 1) * (height - 1) + (width - 1) * (width - 1)
+    return (rows * rows + cols * cols).astype(dtype) / jnp.maximum(squared_diagonal, 1).astype(dtype)
 
 
 def radial_distance_squared(plane_shape, dtype=jnp.float32):
@@ -250,9 +298,10 @@ def radial_distance_squared(plane_shape, dtype=jnp.float32):
     return to_planes(radial_distance_squared_mosaic((2 * half_h, 2 * half_w), dtype))
 
 
-def shading_gain_mosaic(mosaic_shape, shading, dtype=jnp.float32):
-    """Radial gain 1 + a1[p] r^2 + a2[p] r^4 of every pixel (H, W)."""
-    r2 = radial_distance_squared_mosaic(mosaic_shape, dtype)
+def shading_gain_mosaic(mosaic_shape, shading, dtype=jnp.float32, *, valid_shape=None):
+    """Radial gain 1 + a1[p] r^2 + a2[p] r^4 of every pixel (H, W) (`valid_shape`: see
+    `radial_distance_squared_mosaic`)."""
+    r2 = radial_distance_squared_mosaic(mosaic_shape, dtype, valid_shape=valid_shape)
     coefficients = per_position(shading, mosaic_shape)
     return 1.0 + coefficients[..., 0] * r2 + coefficients[..., 1] * r2**2
 
@@ -274,9 +323,10 @@ def from_planes(planes):
 # selected pixel by pixel (`per_position`): in this layout XLA fuses the whole chain from the
 # 8-bit input to the uint16 output into one vectorised loop.
 
-def apply_optical_effects(mosaic, effects: SensorEffects):
-    """Effects on the light reaching each pixel: lens/colour shading and per-channel gain."""
-    gain = shading_gain_mosaic(mosaic.shape, effects.shading, mosaic.dtype)
+def apply_optical_effects(mosaic, effects: SensorEffects, *, valid_shape=None):
+    """Effects on the light reaching each pixel: lens/colour shading and per-channel gain.
+    `valid_shape`: (h, w) of the image in the top-left of a zero-padded mosaic."""
+    gain = shading_gain_mosaic(mosaic.shape, effects.shading, mosaic.dtype, valid_shape=valid_shape)
     return mosaic * gain * per_position(effects.channel_gain, mosaic.shape)
 
 

@@ -167,8 +167,17 @@ def sample_conditions(key, profile, *, neutral=None, iso=None, exposure_gain=Non
 
 def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: bool = True,
                   effects: bool = True, highlight_safe: bool | None = None, recipe: str = "dng",
-                  quantize: bool = True, lens_gain=None, colour: str = "matrix"):
+                  quantize: bool = True, lens_gain=None, colour: str = "matrix", valid_shape=None,
+                  return_clean: bool = False):
     """Steps 1 and 5-7 of `unprocess`: the pixels, for `conditions` from `sample_conditions`.
+
+    Returns the mosaic, or with `return_clean` the pair (mosaic, clean): clean is the same
+    mosaic without the random parts of the sensor (noise, row/column banding), every
+    deterministic effect kept, from the same colour computation (one pass under jit).
+
+    `valid_shape`: (h, w) (traced int32 allowed) when `image` is an h x w image zero-padded at
+    the bottom and right; the top-left h x w of the result is then bit for bit that of the
+    unpadded image (shading centre, noise counters and banding follow the image's own size).
 
     Every stage is element-wise in the (H, W) mosaic layout, so under jit XLA fuses them into one
     loop from the input codes to the uint16 output, with no float64 and no intermediate arrays.
@@ -184,20 +193,24 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
 
     # 6. Optics and sensor: shading and channel gains, noise at the drawn ISO, readout effects.
     if effects:
-        mosaic = _sensor.apply_optical_effects(mosaic, profile.effects)
+        mosaic = _sensor.apply_optical_effects(mosaic, profile.effects, valid_shape=valid_shape)
     if lens_gain is not None:
         mosaic = mosaic / _sensor.from_planes(lens_gain)
+    signal = mosaic
     if noise:
         mosaic = _sensor.add_noise(conditions["noise_key"], mosaic, conditions["noise_shot"], conditions["noise_read"],
                                    level_knots=profile.noise.level_knots, level_variance=conditions.get("noise_level"),
-                                   correlation_kernel=profile.noise.correlation_kernel)
+                                   correlation_kernel=profile.noise.correlation_kernel, valid_shape=valid_shape)
     effect_parameters = profile.effects if effects else _sensor.no_effects()
     if effects:
         mosaic = _sensor.apply_readout_effects(conditions["readout_key"], mosaic, profile.effects)
 
     # 7. Black and white levels, quantisation.
-    return _sensor.to_digital_numbers(mosaic, profile.black_level, profile.white_level,
-                                      effect_parameters, quantize=quantize)
+    levels = lambda m: _sensor.to_digital_numbers(m, profile.black_level, profile.white_level, effect_parameters,
+                                                  quantize=quantize)
+    if not return_clean:
+        return levels(mosaic)
+    return levels(mosaic), levels(jnp.minimum(signal, profile.effects.clip_level) if effects else signal)
 
 
 def _check_image(image, ndim: int = 3):
@@ -209,7 +222,7 @@ def _check_image(image, ndim: int = 3):
 def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=None,
               exposure_gain=None, noise: bool = True, effects: bool = True,
               highlight_safe: bool | None = None, recipe: str = "dng", quantize: bool = True, lens_gain=None,
-              colour: str = "matrix"):
+              colour: str = "matrix", return_clean: bool = False):
     """Turn one CG image into a RAW mosaic of the profiled camera.
 
     **Arguments:**
@@ -234,8 +247,11 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     - `lens_gain`: optional (4, H/2, W/2) gain a DNG renderer applies from the camera's
       lens-shading opcodes (`g2r_jax.lens_shading.shading_gain_planes`); the raw is divided by
       it, so that a renderer applying the opcode gets the scene back.
+    - `return_clean`: also return the clean mosaic (no noise, no banding; every deterministic
+      effect kept), computed in the same pass: a denoiser's (input, target) pair.
 
-    **Returns:** `(mosaic, metadata)`: mosaic (H, W) in DN between the black and white levels;
+    **Returns:** `(mosaic, metadata)`, or `(mosaic, clean, metadata)` with `return_clean`:
+    mosaic (H, W) in DN between the black and white levels;
     metadata a dict of arrays: neutral (3,), xy (2,), cct, iso, exposure_gain, noise_shot (4,),
     noise_read (4,) (normalised units per tile position), converged (white-point solve).
     """
@@ -246,12 +262,12 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     # Steps 1, 5-7: decode, un-white-balance and mosaic, sensor, levels.
     mosaic = render_mosaic(image, conditions, profile, transfer=transfer, noise=noise, effects=effects,
                            highlight_safe=highlight_safe, recipe=recipe, quantize=quantize, lens_gain=lens_gain,
-                           colour=colour)
-    return mosaic, _metadata(conditions, colour)
+                           colour=colour, return_clean=return_clean)
+    return (*mosaic, _metadata(conditions, colour)) if return_clean else (mosaic, _metadata(conditions, colour))
 
 
 def unprocess_batch(keys, images, profile, *, neutral=None, iso=None, exposure_gain=None,
-                    recipe: str = "dng", colour: str = "matrix", **render_options):
+                    recipe: str = "dng", colour: str = "matrix", valid_shapes=None, **render_options):
     """`unprocess` over a batch (B, H, W, 3) with keys (B, ...), same results image by image
     whatever the batch size or an image's place in it.
 
@@ -259,7 +275,11 @@ def unprocess_batch(keys, images, profile, *, neutral=None, iso=None, exposure_g
     (`lax.map`), each step compiled for one image: small matrix products compiled for a batch
     round differently with the batch size, which would make bytes depend on how files were
     batched or sharded. The pixels, element-wise, are vmapped. `neutral` is None or (B, 3);
-    `iso` and `exposure_gain` are None or shared scalars; other options as `unprocess`.
+    `iso` and `exposure_gain` are None or shared scalars; `valid_shapes` None or (B, 2) int32
+    (h, w) of images zero-padded at the bottom/right to a common shape (each image's top-left
+    h x w is then bit for bit its unpadded conversion: how `g2r-convert` batches mixed sizes);
+    other options as `unprocess` (with `return_clean=True` the result is
+    `(mosaics, clean_mosaics, metadata)`).
     """
     _check_image(images, ndim=4)
 
@@ -269,9 +289,11 @@ def unprocess_batch(keys, images, profile, *, neutral=None, iso=None, exposure_g
                                  colour=colour)
 
     conditions = jax.lax.map(conditions_of, (keys, neutral))
-    mosaics = jax.vmap(lambda image, c: render_mosaic(image, c, profile, recipe=recipe, colour=colour,
-                                                      **render_options))(images, conditions)
-    return mosaics, _metadata(conditions, colour)
+    render = lambda image, c, shape: render_mosaic(image, c, profile, recipe=recipe, colour=colour,
+                                                   valid_shape=shape, **render_options)
+    mosaics = jax.vmap(render)(images, conditions, valid_shapes)
+    metadata = _metadata(conditions, colour)
+    return (*mosaics, metadata) if render_options.get("return_clean") else (mosaics, metadata)
 
 
 def image_key(seed: int, index: int):

@@ -119,24 +119,6 @@ def test_ray_engine_reports_a_missing_ray_clearly(monkeypatch):
         distributed.convert_files_ray([], "Canon600D", "unused")
 
 
-def test_fused_normal_draws_are_jax_random_normal_bit_for_bit():
-    import jax
-    import jax.numpy as jnp
-
-    from g2r_jax import sensor
-
-    for key in (jax.random.PRNGKey(3), jax.random.key(4)):
-        np.testing.assert_array_equal(np.asarray(jax.jit(lambda k: sensor.standard_normal(k, (3, 5, 7)))(key)),
-                                      np.asarray(jax.random.normal(key, (3, 5, 7))))
-        planes = sensor.from_planes(jax.random.normal(key, (4, 6, 10)))
-        np.testing.assert_array_equal(np.asarray(jax.jit(lambda k: sensor.standard_normal_planes(k, (12, 20)))(key)),
-                                      np.asarray(planes))
-    keys = jax.random.split(jax.random.PRNGKey(5), 3)       # vmapped keys, as in a batch
-    np.testing.assert_array_equal(np.asarray(jax.jit(jax.vmap(lambda k: sensor.standard_normal(k, (8, 9))))(keys)),
-                                  np.asarray(jax.vmap(lambda k: jax.random.normal(k, (8, 9)))(keys)))
-    assert sensor.standard_normal(jax.random.PRNGKey(0), (4,), jnp.float16).dtype == jnp.float16   # falls back
-
-
 def test_unprocess_batch_gives_the_same_bytes_whatever_the_batch():
     import jax
     import jax.numpy as jnp

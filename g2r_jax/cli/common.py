@@ -89,8 +89,17 @@ def quiet_libraries(name: str, debug: bool = False):
 
 def run_command(name: str, body, argv, parser) -> int:
     """Parse `argv`, run `body(args)`; print 'name: error: message' on failure (exit 2),
-    or the traceback too with --debug. `body` returns the exit code."""
+    or the traceback too with --debug. `body` returns the exit code. Every command gets
+    `--no-compile-cache`; without it JAX's persistent compilation cache is on
+    (`g2r_jax.compile_cache`)."""
+    parser.add_argument("--no-compile-cache", action="store_true",
+                        help="do not use the on-disk compilation cache (default location "
+                             "~/.cache/g2r_jax/jax, or $G2R_JAX_CACHE_DIR)")
     args = parser.parse_args(argv)
+    if not args.no_compile_cache:
+        from ..compile_cache import enable
+
+        enable(program=name)
     debug = bool(getattr(args, "debug", False))
     with quiet_libraries(name, debug):
         try:
