@@ -10,10 +10,35 @@ import time
 
 import numpy as np
 
+from ..io.dng_info import DngError
 from . import gain, loading, simulate, stats
 from .causes import REGISTRY
 from .scenes import scene_set
 from .vocabulary import CAUSES, UNEXPLAINED
+
+
+MIN_FILES_FOR_DEFECTS = 3   # a pixel is "consistently" defective only in several files of one size
+SIMULATION_PIXELS = 240_000  # simulated files have the measured aspect and at most this many pixels
+
+
+SCORE_CAP = 40.0   # |t| or z beyond this is certainty either way (p < 1e-300): rank by relevance
+
+
+def rank(finding):
+    """Sort key: significant first; then by score up to SCORE_CAP; among findings beyond it, by
+    relevance (magnitude over the cause's tolerance: how many times the smallest difference
+    worth reporting), so that two certain differences are ordered by how much they matter."""
+    relevance = finding.get("magnitude", 0.0) / max(finding.get("tolerance", 0.0), 1e-12) if finding.get("tolerance") else 0.0
+    return (not finding["significant"], -min(finding["score"], SCORE_CAP), -relevance, -finding["score"])
+
+
+def simulation_size(shape) -> tuple[int, int]:
+    """(height, width) of the simulated files for measured files of `shape`: the same size up to
+    SIMULATION_PIXELS, else scaled down with the same aspect (even sides). The statistics are
+    per pixel, per region or in relative image coordinates, so they compare across sizes."""
+    height, width = shape
+    scale = min(1.0, float(np.sqrt(SIMULATION_PIXELS / (height * width))))
+    return max(16, int(height * scale) // 2 * 2), max(16, int(width * scale) // 2 * 2)
 
 
 def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = None, seed: int = 0,
@@ -23,7 +48,8 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
 
     **Arguments:**
     - `profile`: the `SensorProfile` under audit.
-    - `measured`: DNG paths, or in-memory (mosaic (H, W) uint16, DngInfo) pairs; all one size.
+    - `measured`: DNG paths, or in-memory (mosaic (H, W) uint16, DngInfo) pairs; any sizes
+      (simulated files take the commonest size, scaled to at most `SIMULATION_PIXELS`).
     - `scenes`: (N, H, W, 3) sRGB images in [0, 1], or a folder of images, to simulate from;
       default: built-in dead-leaves scenes (`g2r_jax.audit.scenes`).
     - `n_simulated`: number of simulated files (default: as many as measured, at least 24).
@@ -40,6 +66,7 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
     kept extension, under key "profile" - not JSON; `report.to_json` drops it) and run details.
     Raises DngError naming a file that cannot be used; with `on_error`, such a file is reported
     to `on_error(line)` and left out instead (DngError only when no usable file is left).
+    Files of several sizes are audited together.
     """
     started = time.perf_counter()
     say = progress or (lambda message: None)
@@ -56,27 +83,44 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
                             timing={"total_s": time.perf_counter() - started})
         return chart_report
     by_name = {c.name: c for c in registry}
-    files = loading.load_measured(measured, on_error=on_error)
-    shapes = {m.shape for m, _ in files}
-    if len(shapes) > 1:
-        from ..io.dng_info import DngError
-        raise DngError(files[0][1].path, f"measured files differ in size {sorted(shapes)}; audit one size at a time")
-    height, width = files[0][0].shape
-    n_sim = n_simulated or max(24, len(files))
+    items = list(measured)
+    if not items:
+        raise ValueError("no measured files to audit")
+    items = loading.check_measured(items, on_error=on_error)
+    say(f"statistics of {len(items)} measured files")
+    # one file in memory at a time: statistics are small, 12-MP mosaics are not
+    with_outliers = len(items) >= MIN_FILES_FOR_DEFECTS
+    measured_stats = []
+    for index, item in enumerate(items):
+        try:
+            (mosaic, info), = loading.load_measured([item])
+        except DngError as error:
+            if on_error is None:
+                raise
+            on_error(str(error))
+            continue
+        measured_stats.append(stats.file_statistics(mosaic, info, profile, with_outliers=with_outliers,
+                                                    seed=seed + index))
+        del mosaic
+    if not measured_stats:
+        raise DngError(loading.folder_of(items), "no usable measured DNG files")
+    items = [f["name"] for f in measured_stats]
+    shapes = [f["shape"] for f in measured_stats]
+    height, width = simulation_size(max(set(shapes), key=shapes.count))
+    n_sim = n_simulated or max(24, len(items))
     if scenes is None:
         scene_images = scene_set(n_sim, seed + 7919, height, width)
     elif isinstance(scenes, np.ndarray):
         scene_images = scenes
+        height, width = scene_images.shape[1:3]
     else:
         scene_images = loading.load_scenes(scenes, n_sim, height, width)
-    say(f"statistics of {len(files)} measured files")
-    measured_stats = [stats.file_statistics(m, info, profile) for m, info in files]
 
     def simulate_stats(p, cause="all"):
         sim = simulate.simulate(p, scene_images, seed + 104729)
-        return [stats.file_statistics(m, info, profile, 
-                                     with_outliers=cause == "all" or by_name[cause].needs_outliers)
-                for m, info in sim]
+        return [stats.file_statistics(m, info, profile, seed=seed + 7 * i,
+                                      with_outliers=with_outliers and (cause == "all" or by_name[cause].needs_outliers))
+                for i, (m, info) in enumerate(sim)]
 
     say(f"simulating {len(scene_images)} files")
     simulated_stats = simulate_stats(profile)
@@ -89,9 +133,10 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         for cause in causes:
             finding = cause.test(measured_stats, sim_stats, current, n_permutations=n_permutations, seed=seed)
             finding["significant"] = cause.is_significant(finding, threshold)
+            finding["tolerance"] = cause.tolerance
             finding["params"], finding["gain"] = {}, None
             out.append(finding)
-        return sorted(out, key=lambda f: (not f["significant"], -f["score"]))
+        return sorted(out, key=rank)
 
     # Explain away: take the strongest significant difference, validate its extension on held-out
     # files, and if kept re-simulate with it and re-test the rest (a difference that another
@@ -116,7 +161,7 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
             continue
         say(f"cross-validating the {cause.name} extension")
         top["gain"] = gain.cross_validate(cause, measured_stats, current_stats, extended, simulate_stats,
-                                          folds=min(folds, len(files)), seed=seed)
+                                          folds=min(folds, len(items)), seed=seed)
         if top["gain"]["after"] < top["gain"]["before"]:
             top["params"] = cause.fit(measured_stats, current_stats, extended, seed=seed)
             top["kept"] = True
@@ -131,14 +176,15 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
     # a statistic without an extension is a finding only when significant (as `unexplained`)
     by_name.update({c.name: c for c in chart_causes})
     findings = [f for f in done if f["cause"] == UNEXPLAINED or by_name[f["cause"]].extensible]
-    findings.sort(key=lambda f: (not f["significant"], -f["score"]))
+    findings.sort(key=rank)
     timing["total_s"] = time.perf_counter() - started
     return {
         "findings": findings, "unexplained": unexplained,
         "vocabulary": list(CAUSES), "alpha": alpha, "tests": tests, "threshold_p": threshold,
-        "n_measured": len(files), "n_simulated": len(scene_images), "seed": seed,
+        "n_measured": len(items), "n_simulated": len(scene_images), "seed": seed,
         **({"n_charts": chart_report["n_charts"], "charts": chart_report["charts"]} if chart_report else {}),
-        "size": [height, width], "timing": timing, "profile": extended,
+        "size": [int(v) for v in shapes[0]], "sizes": sorted({tuple(int(v) for v in s) for s in shapes}),
+        "simulated_size": [int(height), int(width)], "timing": timing, "profile": extended,
     }
 
 

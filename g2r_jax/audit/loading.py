@@ -71,6 +71,33 @@ def load_measured(items, *, on_error=None) -> list[tuple[np.ndarray, DngInfo]]:
     return out
 
 
+def check_measured(items, *, on_error=None) -> list:
+    """Read the tags (not the pixels) of every DNG path among `items`, before any work is done:
+    DngError naming the first file that cannot be audited, or with `on_error`, one line per such
+    file to `on_error(line)` and the usable items returned."""
+    from ..io.dng_read import read_dng_info, require_bayer_cfa
+
+    usable = []
+    for item in items:
+        try:
+            if not (isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[1], DngInfo)):
+                require_bayer_cfa(read_dng_info(item))
+            usable.append(item)
+        except DngError as error:
+            if on_error is None:
+                raise
+            on_error(str(error))
+    if not usable:
+        raise DngError(folder_of(items), f"no usable measured DNG files ({len(items)} refused)")
+    return usable
+
+
+def folder_of(items) -> Path:
+    """The folder of the first item (a path or a (mosaic, DngInfo) pair), for messages."""
+    first = items[0] if items else "."
+    return Path(str(first[1].path if isinstance(first, (tuple, list)) else first)).parent
+
+
 def load_scenes(folder, n: int, height: int, width: int) -> np.ndarray:
     """(n, H, W, 3) sRGB scenes in [0, 1] from the images of a folder (cycled if fewer than n),
     each resized to the measured files' size."""

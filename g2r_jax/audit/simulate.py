@@ -40,8 +40,19 @@ def pad_defects(profile, height: int):
 
 
 @jax.jit
-def _simulate_batch(keys, images, neutrals, profile):
-    return jax.vmap(lambda k, im, n: unprocess(k, im, profile, neutral=n))(keys, images, neutrals)
+def _simulate_batch(keys, images, neutrals, profile, lens_gain):
+    return jax.vmap(lambda k, im, n: unprocess(k, im, profile, neutral=n, lens_gain=lens_gain))(keys, images, neutrals)
+
+
+def lens_shading(profile, height: int, width: int):
+    """(gain planes or None, OpcodeList2 bytes or None): the profile's lens-shading opcodes at
+    this size, as `g2r-convert` writes them (the raw carries the inverse of the gain)."""
+    if "OpcodeList2" not in dict(profile.info.opcode_lists):
+        return None, None
+    from ..convert import lens_shading_for
+
+    gain, data = lens_shading_for(profile, height, width)
+    return (jnp.asarray(gain), data) if data else (None, None)
 
 
 def sample_neutrals(keys, illuminants):
@@ -87,16 +98,20 @@ def simulate(profile, scenes, seed: int, *, batch: int = 8) -> list[tuple[np.nda
     scenes = np.asarray(scenes, np.float32)
     n, height, width = scenes.shape[:3]
     padded = _profile.replace(pad_defects(profile, height), illuminants=_fixed_illuminants(profile))
+    lens_gain, opcode_list2 = lens_shading(profile, height, width)
     out = []
     for start in range(0, n, batch):
         stop = min(start + batch, n)
         idx = list(range(start, stop)) + [start] * (batch - (stop - start))  # constant batch shape
         keys = jnp.stack([image_key(seed, i) for i in idx])
         neutrals = sample_neutrals(keys, profile.illuminants)
-        mosaics, metadata = _simulate_batch(keys, jnp.asarray(scenes[idx]), neutrals, padded)
+        mosaics, metadata = _simulate_batch(keys, jnp.asarray(scenes[idx]), neutrals, padded, lens_gain)
         mosaics = np.asarray(mosaics)
         metadata = {k: np.asarray(v) for k, v in metadata.items()}
         for j, i in enumerate(range(start, stop)):
             meta = {k: v[j] for k, v in metadata.items()}
-            out.append((mosaics[j], info_for(profile, meta, height, width, i)))
+            info = info_for(profile, meta, height, width, i)
+            if opcode_list2:
+                info.opcode_lists = {"OpcodeList2": opcode_list2}
+            out.append((mosaics[j], info))
     return out

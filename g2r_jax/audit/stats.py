@@ -8,9 +8,10 @@ pedestal shows up in `dark_floor` only. `file_statistics` computes them all.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
-from .. import sensor as _sensor
 
 # Trimmed second moment: the mean of the smallest 90% of d^2 is 0.62302 sigma^2 for a zero-mean
 # Gaussian d (chi-square(1) truncated at its 0.9 quantile 2.7055); robust to the few differences
@@ -22,12 +23,24 @@ NLF_EDGES = np.array([-0.02, 0.01, 0.03, 0.06, 0.12, 0.25, 0.45, 0.7, 0.92])
 RINGS = 7
 
 
+LARGE = 4_000_000
+STRIDE_PIXELS = 750_000   # per-plane pixel count above which some statistics read a strided subset
+
+
+def _stride(planes) -> int:
+    """Step for statistics that need many pixels but not all (about STRIDE_PIXELS per plane)."""
+    return max(1, int(round(np.sqrt(planes[0].size / STRIDE_PIXELS))))   # mosaics with more pixels are held in float32 (half the memory traffic)
+
+
 def to_normalised_planes(mosaic, black_level, white_level) -> np.ndarray:
-    """(H, W) DN mosaic -> (4, H/2, W/2) float64 planes x = (DN - black) / (white - black)."""
-    m = np.asarray(mosaic, np.float64)
-    planes = np.stack([m[0::2, 0::2], m[0::2, 1::2], m[1::2, 0::2], m[1::2, 1::2]])  # sensor.to_planes
-    black = np.asarray(black_level, np.float64).reshape(4, 1, 1)
-    return (planes - black) / (float(white_level) - black)
+    """(H, W) DN mosaic -> (4, H/2, W/2) planes x = (DN - black) / (white - black); float64,
+    float32 above `LARGE` pixels."""
+    m = np.asarray(mosaic)
+    dtype = np.float32 if m.size > LARGE else np.float64
+    black = np.resize(np.asarray(black_level, np.float64), 4)
+    scale = 1.0 / (float(white_level) - black)
+    return np.stack([(m[dy::2, dx::2].astype(dtype) - dtype(black[p])) * dtype(scale[p])     # sensor.to_planes
+                     for p, (dy, dx) in enumerate(((0, 0), (0, 1), (1, 0), (1, 1)))])
 
 
 def block_means(planes, size: int) -> np.ndarray:
@@ -38,8 +51,17 @@ def block_means(planes, size: int) -> np.ndarray:
 
 
 def radial_r2(plane_shape) -> np.ndarray:
-    """r^2 of every plane pixel (4, H/2, W/2), r = 1 in the corners (as the shading model)."""
-    return np.asarray(_sensor.radial_distance_squared(plane_shape), np.float64)
+    """r^2 of every plane pixel (4, H/2, W/2), r = 1 in the corners (as the shading model,
+    `sensor.radial_distance_squared`)."""
+    half_h, half_w = plane_shape
+    height, width = 2 * half_h, 2 * half_w
+    norm = (height - 1) ** 2 / 4 + (width - 1) ** 2 / 4
+    out = np.empty((4, half_h, half_w), np.float32)
+    for p, (dy, dx) in enumerate(((0, 0), (0, 1), (1, 0), (1, 1))):
+        rows = (np.arange(dy, height, 2) - (height - 1) / 2) ** 2
+        cols = (np.arange(dx, width, 2) - (width - 1) / 2) ** 2
+        out[p] = (rows[:, None] + cols[None, :]) / norm
+    return out
 
 
 def dark_floor(planes) -> np.ndarray:
@@ -95,8 +117,9 @@ def banding(planes) -> np.ndarray:
     result = []
     for axis_planes in (planes, np.swapaxes(planes, 1, 2)):
         values = []
+        step = _stride(planes)
         for plane in axis_planes:
-            diff = np.diff(plane, axis=0)
+            diff = np.diff(plane[:, ::step], axis=0)
             half = diff.shape[1] // 2
             a, b = np.median(diff[:, :half], axis=1), np.median(diff[:, half:], axis=1)
             s = lambda v: _MAD_TO_STD * np.median(np.abs(v - np.median(v)))
@@ -239,7 +262,8 @@ def brightness(planes, r2, clip) -> np.ndarray:
     exactly e as long as fewer than 30% of the pixels are black or clipped, so the statistic is
     equivariant to exposure; averaging nine percentiles smooths the steps of a piecewise-flat scene.
     """
-    centre = planes[:, r2[0] < 0.35]
+    step = _stride(planes)
+    centre = planes[:, ::step, ::step][:, r2[0, ::step, ::step] < 0.35]
     levels = np.quantile(np.log2(np.maximum(centre, 1e-4)), np.linspace(0.3, 0.7, 9))
     return np.array([levels.mean()])
 
@@ -288,12 +312,50 @@ def outliers(planes, clip, threshold: float = 0.12):
     return np.concatenate(rows), np.concatenate(cols), np.concatenate(values)
 
 
-def file_statistics(mosaic, info, profile, *, with_outliers: bool = True) -> dict:
+def gain_map_log_corner(opcode_lists, shape, cfa_pattern) -> np.ndarray:
+    """(4,) log gain at the corners that a file's own lens-shading opcodes (GainMap,
+    FixVignetteRadial in OpcodeList2) put on the raw: c1 + c2 of a least-squares fit
+    log(1 / gain) = c1 r^2 + c2 r^4 on the plane grid (the form `shading_profile` measures).
+    Zeros for a file without such opcodes."""
+    if not opcode_lists or "OpcodeList2" not in dict(opcode_lists):
+        return np.zeros(4)
+    data = dict(opcode_lists)["OpcodeList2"]
+    data = bytes.fromhex(data) if isinstance(data, str) else bytes(data)
+    return _gain_map_log_corner(data, tuple(int(v) for v in shape), tuple(int(c) for c in np.asarray(cfa_pattern))).copy()
+
+
+@functools.lru_cache(maxsize=16)
+def _gain_map_log_corner(data: bytes, shape, cfa_pattern) -> np.ndarray:
+    from ..lens_shading import rescale_opcode_list, shading_gain_planes
+
+    height, width = shape
+    step = max(1, min(height, width) // 400)          # the gains are smooth: a coarse grid will do
+    small = (height // step // 2 * 2, width // step // 2 * 2)
+    if small != (height, width):
+        data = rescale_opcode_list(data, (height, width), small, shading_only=True)
+    gain = shading_gain_planes({"OpcodeList2": data}, *small, tuple(np.asarray(cfa_pattern)))
+    r2 = radial_r2(gain.shape[1:]).reshape(4, -1).astype(np.float64)
+    log_inverse = -np.log(gain.astype(np.float64)).reshape(4, -1)
+    out = np.zeros(4)
+    for p in range(4):
+        c = np.linalg.lstsq(np.stack([r2[p], r2[p] ** 2], 1), log_inverse[p], rcond=None)[0]
+        out[p] = c[0] + c[1]
+    return out
+
+
+SHADING_SIDE = 600   # planes larger than this (shorter side) are binned before the shading fit
+
+
+def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: int = 0) -> dict:
     """All statistics of one file (mosaic (H, W) DN, its DngInfo) as a dict of numpy arrays.
 
-    Keys: dark_floor (4), clip (4), band (2), nlf_var / nlf_level (4, B), iso, green (1),
-    shading (4), brightness (1), noise_corr (1), outliers (rows, cols, values), neutral (3).
+    Keys: dark_floor (4), clip (4), band (2), nlf {"A", "B"} (noise level function of each
+    checkerboard half of the tiles, `evidence.nlf_halves`), quantisation (4), iso, green (1),
+    shading (4, raw shading minus what the file's own GainMap puts there), gain_map_shading (4),
+    brightness (1), noise_corr (1), outliers (rows, cols, values) or None, neutral (3), shape, name, span.
     """
+    from . import evidence
+
     black = np.resize(np.asarray(info.black_level, np.float64).reshape(-1), 4)
     white = float(info.white_level)
     raw = to_normalised_planes(mosaic, black, white)
@@ -304,17 +366,24 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True) -> dic
     # a spike at WhiteLevel is the tag's clamp (whatever the pedestal), not an early clip
     clip = np.where(spike >= 1.0 - 0.5 / span, 1.0, spike - floor)
     band = banding(planes)
-    nlf_var, nlf_level = noise_level_function(planes, clip, band)
+    top = np.where(np.isfinite(spike), spike, 1.0) - 2.0 / span
+    # on the floor-subtracted planes, like every statistic but the floor: a pedestal is black_level's
+    nlf = evidence.nlf_halves(planes, clip=top - floor, clip_low=-black / span + 2.0 / span - floor, seed=seed)
     r2 = radial_r2(planes.shape[1:])
     greens = tuple(int(i) for i in np.flatnonzero(np.asarray(info.cfa_pattern) == 1)[:2])
     from .. import fit as _fit
     neutral = _fit.as_shot_neutral(info)
     iso = info.iso if info.iso else float(np.sqrt(np.prod(np.asarray(profile.noise.iso_range, np.float64))))
+    binning = max(1, min(planes.shape[1:]) // SHADING_SIDE)
+    shading_planes = block_means(planes, binning) if binning > 1 else planes
+    gain_map = gain_map_log_corner(getattr(info, "opcode_lists", None), np.shape(mosaic), info.cfa_pattern)
     return {
-        "dark_floor": floor, "clip": clip, "band": band, "nlf_var": nlf_var, "nlf_level": nlf_level,
+        "dark_floor": floor, "clip": clip, "band": band, "nlf": nlf,
+        "quantisation": evidence.quantisation_variance(black, white),
         "iso": float(iso), "green": green_ratio(planes, greens, clip, floor),
-        "shading": shading_profile(planes, clip),
-        "brightness": brightness(planes, r2, clip), "noise_corr": noise_correlation(planes),
-        "outliers": outliers(planes, clip) if with_outliers else None, "neutral": None if neutral is None else np.asarray(neutral, np.float64),
-        "shape": tuple(np.shape(mosaic)),
+        "shading": shading_profile(shading_planes, clip) - gain_map, "gain_map_shading": gain_map,
+        "brightness": brightness(planes, r2, clip), "noise_corr": noise_correlation(planes if _stride(planes) == 1 else evidence.tile_halves(planes)[0]),
+        "outliers": outliers(planes, clip) if with_outliers else None,
+        "neutral": None if neutral is None else np.asarray(neutral, np.float64),
+        "shape": tuple(np.shape(mosaic)), "name": str(getattr(info, "path", "")), "span": span,
     }

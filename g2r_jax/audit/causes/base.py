@@ -21,7 +21,11 @@ import warnings
 
 import numpy as np
 
+from scipy import stats as _scipy_stats
+
 from .. import significance
+
+MIN_FILES_PERMUTATION = 4   # below this, permutations over files cannot reach small p-values
 
 
 def quiet_nanmean(values, axis=0):
@@ -86,7 +90,10 @@ class Cause:
     # -- how it is tested
     def test(self, measured, simulated, profile, *, n_permutations: int = 2000, seed: int = 0) -> dict:
         """A finding: cause, score, p, magnitude (in the statistic's units), statistic,
-        evidence (words), difference (per component)."""
+        evidence (words), difference (per component). Permutation maxT over files; with fewer
+        than `MIN_FILES_PERMUTATION` measured files, the prediction-interval test instead."""
+        if len(measured) < MIN_FILES_PERMUTATION:
+            return self.prediction_test(measured, simulated, profile)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             m, s = self.vectors(measured, profile), self.vectors(simulated, profile)
@@ -99,6 +106,33 @@ class Cause:
         return {"cause": self.name, "score": test["score"], "p": test["p"], "magnitude": magnitude,
                 "statistic": self.statistic, "evidence": evidence,
                 "difference": np.nan_to_num(test["difference"]).tolist()}
+
+    def prediction_test(self, measured, simulated, profile) -> dict:
+        """Few measured files against the spread of the simulated ones: per component
+        t = (mean_m - mean_s) / sqrt(s_s^2 (1/n_m + 1/n_s) + floor^2), Student t with n_s - 1
+        degrees of freedom (the prediction interval of a new observation, e.g. Hahn & Meeker,
+        *Statistical Intervals*, 1991, ch. 4), Bonferroni over components. A statistic that
+        describes the sensor varies little between simulated files, so one file has power;
+        one that describes the scene (brightness) varies a lot, so it has little, as it should."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            m, s = self.vectors(measured, profile), self.vectors(simulated, profile)
+            n_m, n_s = np.sum(np.isfinite(m), 0), np.sum(np.isfinite(s), 0)
+            difference = np.nanmean(m, 0) - np.nanmean(s, 0)
+            sd = np.nanstd(s, 0, ddof=1)
+            se = np.sqrt(np.nan_to_num(sd) ** 2 * (1 / np.maximum(n_m, 1) + 1 / np.maximum(n_s, 1)) + self.floor**2)
+            usable = (n_m >= 1) & (n_s >= 3) & np.isfinite(difference)
+            t = np.where(usable, difference / se, 0.0)
+        k = max(int(usable.sum()), 1)
+        score = float(np.max(np.abs(t))) if t.size else 0.0
+        p_components = 2 * _scipy_stats.t.sf(np.abs(t), np.maximum(n_s - 1, 1))
+        p = float(min(1.0, k * np.min(np.where(usable, p_components, 1.0)))) if t.size else 1.0
+        magnitude = float(np.max(np.abs(np.where(usable, difference, 0.0)))) if t.size else 0.0
+        evidence = (f"measured - simulated mean = {np.array2string(np.where(usable, difference, np.nan), precision=5)} "
+                    f"({int(n_m.max()) if n_m.size else 0} measured file(s) against {int(n_s.max()) if n_s.size else 0} "
+                    f"simulated); max |t| = {score:.2f}, prediction-interval p = {p:.4g}")
+        return {"cause": self.name, "score": score, "p": p, "magnitude": magnitude, "statistic": self.statistic,
+                "evidence": evidence, "difference": np.nan_to_num(difference).tolist()}
 
     def is_significant(self, finding: dict, threshold: float) -> bool:
         return bool(finding["p"] < threshold and finding["magnitude"] >= self.tolerance)
