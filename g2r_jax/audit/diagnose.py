@@ -7,6 +7,7 @@ on fit splits and kept only if it lowers the held-out discrepancy.
 from __future__ import annotations
 
 import time
+import warnings
 
 import numpy as np
 
@@ -157,7 +158,7 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         if not cause.extensible:
             unexplained.append({"statistic": top["statistic"], "candidate": None, "score": top["score"],
                                 "evidence": top["evidence"]})
-            done.append(dict(top, cause=UNEXPLAINED, kept=False))
+            done.append(dict(top, cause=UNEXPLAINED, kept=False, source=cause.name))
             continue
         say(f"cross-validating the {cause.name} extension")
         top["gain"] = gain.cross_validate(cause, measured_stats, current_stats, extended, simulate_stats,
@@ -172,11 +173,17 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
             top["kept"] = False
             unexplained.append({"statistic": top["statistic"], "candidate": cause.name, "score": top["score"],
                                 "evidence": top["evidence"] + "; the candidate's extension does not help on held-out files"})
-            done.append(dict(top, cause=UNEXPLAINED, candidate=cause.name))
+            done.append(dict(top, cause=UNEXPLAINED, candidate=cause.name, source=cause.name))
     # a statistic without an extension is a finding only when significant (as `unexplained`)
     by_name.update({c.name: c for c in chart_causes})
     findings = [f for f in done if f["cause"] == UNEXPLAINED or by_name[f["cause"]].extensible]
     findings.sort(key=rank)
+    for f in findings:   # the plot that makes the case, for the HTML report
+        cause = by_name.get(f.get("source", f["cause"]))
+        if f["significant"] and cause is not None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                f["plot"] = cause.plot(measured_stats, simulated_stats, profile, extended if f.get("kept") else None)
     timing["total_s"] = time.perf_counter() - started
     return {
         "findings": findings, "unexplained": unexplained,

@@ -22,12 +22,19 @@ import numpy as np
 TILE = 64
 MAX_TILES = 160
 N_BINS = 16
+SMALL_MIN_BLOCKS = 10
 
 
-def tile_halves(planes, *, tile: int = TILE, max_tiles: int = MAX_TILES):
+def tile_size(plane_shape) -> int:
+    """TILE, or for small planes a smaller multiple of 8 so that there are at least ~8 tiles a side."""
+    return int(min(TILE, max(16, min(plane_shape) // 8 // 8 * 8)))
+
+
+def tile_halves(planes, *, tile: int | None = None, max_tiles: int = MAX_TILES):
     """(A, B): the two checkerboard halves of the tiles of `planes` (4, h, w), each a
     (4, n * tile, tile) stack of at most `max_tiles` tiles spread evenly over the image."""
     _, h, w = planes.shape
+    tile = tile or tile_size((h, w))
     ny, nx = h // tile, w // tile
     halves = []
     for parity in (0, 1):
@@ -74,7 +81,8 @@ def _median_bias(block: int) -> float:
     return _CALIBRATION[block]
 
 
-def _block_nlf(planes, *, clip, clip_low, edges, block: int = 8, n_bootstrap: int = 200, seed: int = 0):
+def _block_nlf(planes, *, clip, clip_low, edges, block: int = 8, n_bootstrap: int = 200, seed: int = 0,
+               min_blocks: int = 30):
     """Fallback noise level function (fields as `noise_estimation.NoiseLevelEstimate`): blocks of
     block x block plane pixels binned by their mean; per bin the median of the blocks' robust
     variances (`_block_sigma2`; texture and edges reach only some blocks, the median ignores
@@ -97,7 +105,7 @@ def _block_nlf(planes, *, clip, clip_low, edges, block: int = 8, n_bootstrap: in
         sigma2 = _block_sigma2(tiles, block)
         for b in range(nb):
             sel = (mean >= edges[b]) & (mean < edges[b + 1])
-            if sel.sum() < 30:
+            if sel.sum() < min_blocks:
                 continue
             v = sigma2[sel]
             boot = np.median(v[rng.integers(0, v.size, (n_bootstrap, v.size))], axis=1) / bias
@@ -107,7 +115,7 @@ def _block_nlf(planes, *, clip, clip_low, edges, block: int = 8, n_bootstrap: in
     return types.SimpleNamespace(edges=edges, confidence=0.95, **out)
 
 
-def noise_level_function(planes, *, clip, clip_low, edges=None, seed: int = 0):
+def noise_level_function(planes, *, clip, clip_low, edges=None, seed: int = 0, min_blocks: int = 30):
     """Measured NLF of (4, h, w) planes with 95 % intervals: an object with (4, B) `signal`,
     `variance`, `lower`, `upper`, `counts` (see `noise_estimation.NoiseLevelEstimate`)."""
     edges = nlf_edges() if edges is None else edges
@@ -116,9 +124,9 @@ def noise_level_function(planes, *, clip, clip_low, edges=None, seed: int = 0):
     try:
         from .. import noise_estimation
     except ImportError:
-        return _block_nlf(planes, clip=clip, clip_low=clip_low, edges=edges, seed=seed)
+        return _block_nlf(planes, clip=clip, clip_low=clip_low, edges=edges, seed=seed, min_blocks=min_blocks)
     return noise_estimation.estimate_noise_level_function(planes, clip=clip, clip_low=clip_low, edges=edges,
-                                                         seed=seed)
+                                                         seed=seed, min_blocks=min_blocks)
 
 
 def quantisation_variance(black_level, white_level) -> np.ndarray:
@@ -129,7 +137,16 @@ def quantisation_variance(black_level, white_level) -> np.ndarray:
 
 
 def nlf_halves(planes, *, clip, clip_low, seed: int = 0) -> dict:
-    """{"A": estimate, "B": estimate}: the NLF measured on each checkerboard half of the tiles."""
+    """{"A", "B", "all"}: the NLF measured on each checkerboard half of the tiles and on both.
+    Bins: up to N_BINS, fewer for small files (about 150 blocks of 8 x 8 per bin and plane); a
+    bin needs SMALL_MIN_BLOCKS kept blocks in files with fewer than 3000 blocks per plane (their
+    power comes from pooling files), 30 otherwise."""
     a, b = tile_halves(planes)
-    return {"A": noise_level_function(a, clip=clip, clip_low=clip_low, seed=seed),
-            "B": noise_level_function(b, clip=clip, clip_low=clip_low, seed=seed + 1)}
+    blocks = (a.shape[1] * a.shape[2] + b.shape[1] * b.shape[2]) / 64
+    edges = nlf_edges(int(np.clip(blocks / 150, 6, N_BINS)))
+    least = 30 if blocks >= 3000 else SMALL_MIN_BLOCKS
+    both = np.concatenate([a, b], axis=1) if a.shape[2] == b.shape[2] else a
+    options = dict(clip=clip, clip_low=clip_low, edges=edges, min_blocks=least)
+    return {"A": noise_level_function(a, seed=seed, **options),
+            "B": noise_level_function(b, seed=seed + 1, **options),
+            "all": noise_level_function(both, seed=seed + 2, **options)}

@@ -1,5 +1,14 @@
-"""The audit report: REPORT.json (machine-readable), a stdout summary, and an HTML page with a
-PNG plot for people (plots only when matplotlib is installed)."""
+"""The audit report: REPORT.json (machine-readable), a stdout summary, and an HTML page for
+people: per finding the plot that makes the case (matplotlib, when installed), its parameters
+and its held-out gain as before/after numbers.
+
+Plots: `noise_model` - measured noise level function with its 95 % intervals against the
+profile's model (and the extended one), in DN^2 against % of range; `illuminant_distribution` -
+measured as-shot neutrals against samples of the profile's illuminant model; every other cause -
+its per-file statistic, measured files against simulated ones, per component, in the
+statistic's user units (DN for the dark floor, % of range for the clipping level, corner gain
+for shading).
+"""
 
 from __future__ import annotations
 
@@ -33,24 +42,38 @@ FINDING_KEYS = ("cause", "significant", "score", "statistic", "evidence", "param
 
 
 def to_json(report: dict) -> dict:
-    """The REPORT.json document (the extended SensorProfile itself is left out)."""
-    document = {k: v for k, v in report.items() if k != "profile"}
+    """The REPORT.json document (the extended SensorProfile and plot data are left out)."""
+    document = {k: v for k, v in report.items() if k not in ("profile", "plots")}
     document["findings"] = [{k: f[k] for k in FINDING_KEYS if k in f} for f in report["findings"]]
     return _plain(document)
 
 
 def write_json(report: dict, path) -> None:
-
     text = json.dumps(to_json(report), indent=1, allow_nan=False)
     atomic_write_bytes(Path(path), (text + "\n").encode())
+
+
+def gain_words(gain: dict | None, kept=None) -> str:
+    """'held-out METRIC: before -> after (N % lower; on held-out files)' for people."""
+    if not gain:
+        return ""
+    before, after = gain["before"], gain["after"]
+    change = (after / before - 1) * 100 if before else 0.0
+    where = {True: "on held-out files", "regions": "on held-out regions of the file",
+             False: "in-sample (one file, no held-out part)"}.get(gain.get("heldout"), "")
+    verdict = "" if kept is None else ("; kept" if kept else "; rejected")
+    return f"{gain['metric']}: {before:.4g} -> {after:.4g} ({change:+.0f} %, {where}{verdict})"
 
 
 def summary(report: dict) -> str:
     """A readable summary: significant findings first, with their gain."""
     evidence = []
     if report.get("n_measured"):
-        evidence.append(f"{report['n_measured']} measured vs {report['n_simulated']} simulated files "
-                        f"({report['size'][0]}x{report['size'][1]})")
+        sizes = report.get("sizes") or [report["size"]]
+        size_words = ", ".join(f"{h}x{w}" for h, w in sizes)
+        simulated = "x".join(str(v) for v in report.get("simulated_size", report["size"]))
+        evidence.append(f"{report['n_measured']} measured ({size_words}) vs {report['n_simulated']} simulated "
+                        f"files ({simulated})")
     if report.get("n_charts"):
         evidence.append(f"{report['n_charts']} measured chart images")
     lines = [f"g2r-diagnose: {', '.join(evidence)}, family-wise alpha {report['alpha']}"]
@@ -60,46 +83,174 @@ def summary(report: dict) -> str:
     for f in significant:
         lines.append(f"* {f['cause']}  (score {f['score']:.1f}, p {f['p']:.2g})")
         lines.append(f"    {f['evidence']}")
+        if f.get("params"):
+            lines.append(f"    parameters: {_params_words(f['params'])}")
         if f.get("gain"):
-            g = f["gain"]
-            verdict = "kept" if f.get("kept") else "rejected"
-            lines.append(f"    held-out {g['metric']}: {g['before']:.4g} -> {g['after']:.4g} ({verdict})")
+            lines.append(f"    held-out {gain_words(f['gain'], f.get('kept'))}")
     for u in report["unexplained"]:
         lines.append(f"! unexplained: {u['statistic']}: {u['evidence']}")
     lines.append(f"time {report['timing']['total_s']:.1f} s")
     return "\n".join(lines)
 
 
+def _params_words(params: dict, limit: int = 8) -> str:
+    def fmt(v):
+        if isinstance(v, (list, tuple, np.ndarray)):
+            flat = np.asarray(v, dtype=object).ravel().tolist() if not isinstance(v, np.ndarray) else v.ravel().tolist()
+            try:
+                flat = np.asarray(v, np.float64).ravel()
+                text = ", ".join(f"{x:.4g}" for x in flat[:limit])
+                return f"[{text}{', ...' if flat.size > limit else ''}]"
+            except (TypeError, ValueError):
+                return str(v)[:80]
+        if isinstance(v, float):
+            return f"{v:.4g}"
+        return str(v)
+    return "; ".join(f"{k} = {fmt(v)}" for k, v in params.items() if k != "hull_points")
+
+
+# ----------------------------------------------------------------------------- plots
+
+_POSITIONS = ("(0,0)", "(0,1)", "(1,0)", "(1,1)")
+
+
+def _nlf_plot(ax, data):
+    """Measured NLF (points with 95 % intervals, half A and B together) against the model(s)."""
+    colours = ("tab:red", "tab:green", "tab:olive", "tab:blue")
+    f = data["files"][0]
+    span = np.resize(np.asarray(f.get("span") or 1.0, np.float64), 4)
+    for p in range(4):
+        xs, ys, lo, hi, model = [], [], [], [], []
+        for half in f["halves"].values():
+            xs += half["signal"][p]
+            ys += half["variance"][p]
+            lo += half["lower"][p]
+            hi += half["upper"][p]
+            model += half["model"][p]
+        x, y, lo, hi = (np.asarray(v, np.float64) for v in (xs, ys, lo, hi))
+        ok = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
+        scale = span[p] ** 2
+        ax.errorbar(100 * x[ok], y[ok] * scale, yerr=[(y[ok] - lo[ok]) * scale, (hi[ok] - y[ok]) * scale],
+                    fmt="o", ms=3, color=colours[p], label=f"measured, CFA {_POSITIONS[p]} (95 % interval)")
+    grid = np.geomspace(1e-4, 1.0, 100)
+    for key, style, words in (("model_curve", "--", "profile's model"), ("extended_curve", "-", "extended profile")):
+        if data.get(key) is not None:
+            curve = np.asarray(data[key], np.float64)
+            for p in range(4):
+                ax.plot(100 * grid, curve[p] * span[p] ** 2, style, color=colours[p], lw=1,
+                        label=words if p == 0 else None)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("signal (% of range above black)")
+    ax.set_ylabel("noise variance (DN$^2$)")
+    ax.set_title(f"noise level function of {Path(f.get('name') or 'file').name} (ISO {f['iso']:.0f})")
+    ax.legend(fontsize=7)
+
+
+def _strip_plot(ax, data):
+    """Per component: measured files (red) and simulated files (grey), in the statistic's units."""
+    m, s = np.asarray(data["measured"], np.float64), np.asarray(data["simulated"], np.float64)
+    k = m.shape[1] if m.ndim == 2 else 0
+    rng = np.random.default_rng(0)
+    for j in range(k):
+        sv = s[:, j][np.isfinite(s[:, j])] if s.size else np.zeros(0)
+        mv = m[:, j][np.isfinite(m[:, j])]
+        ax.scatter(j - 0.15 + 0.08 * rng.standard_normal(sv.size), sv, s=10, color="0.6",
+                   label="simulated files (profile)" if j == 0 else None)
+        ax.scatter(np.full(mv.size, j + 0.15), mv, s=24, color="tab:red", marker="D",
+                   label="measured files" if j == 0 else None)
+    ax.set_xticks(range(k))
+    ax.set_xticklabels(data.get("labels") or [str(j) for j in range(k)], fontsize=8)
+    ax.set_ylabel(data.get("unit", "statistic"))
+    ax.set_title(data.get("title", ""))
+    ax.legend(fontsize=7)
+
+
+def _neutral_plot(ax, data):
+    m, s = np.asarray(data["measured"]), np.asarray(data["model"])
+    ax.scatter(s[:, 0], s[:, 1], s=6, color="0.6", label="samples of the profile's illuminant model")
+    if data.get("extended") is not None:
+        e = np.asarray(data["extended"])
+        ax.scatter(e[:, 0], e[:, 1], s=6, color="tab:blue", alpha=0.5, label="samples of the extended model")
+    ax.scatter(m[:, 0], m[:, 1], s=24, color="tab:red", marker="D", label="measured as-shot neutrals")
+    ax.set_xlabel("r/g of the as-shot neutral")
+    ax.set_ylabel("b/g of the as-shot neutral")
+    ax.set_title("neutrals against the illuminant model")
+    ax.legend(fontsize=7)
+
+
+def _plot_finding(finding, path) -> bool:
+    data = finding.get("plot")
+    if not data:
+        return False
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    {"nlf": _nlf_plot, "strip": _strip_plot, "neutrals": _neutral_plot}[data["kind"]](ax, data)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return True
+
+
+_STYLE = ("body{font-family:sans-serif;max-width:1000px;margin:1em auto;color:#222}"
+          "table{border-collapse:collapse}td,th{border:1px solid #bbb;padding:3px 6px;font-size:13px;vertical-align:top}"
+          ".finding{border:1px solid #ccc;border-radius:6px;padding:0.6em 1em;margin:1em 0}"
+          ".yes{color:#b00;font-weight:bold}.gain{font-size:15px}")
+
+
 def write_html(report: dict, folder) -> Path | None:
-    """report.html (+ scores.png when matplotlib is available) in `folder`; returns the page."""
+    """report.html in `folder` with one section per finding (significant first): evidence, the
+    plot that makes the case (PNG next to the page, when matplotlib is installed), parameters
+    and the held-out gain as before/after numbers; then a table of every test. Returns the page."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    image = ""
     try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        findings = report["findings"]
-        fig, ax = plt.subplots(figsize=(7, 0.4 * len(findings) + 1))
-        names = [f["cause"] if f["cause"] != "unexplained" else f"unexplained ({f.get('candidate')})" for f in findings]
-        colours = ["tab:red" if f["significant"] else "tab:gray" for f in findings]
-        ax.barh(names[::-1], [f["score"] for f in findings][::-1], color=colours[::-1])
-        ax.set_xlabel("score (|t| or z of the difference measured - simulated)")
-        ax.set_xscale("symlog", linthresh=3)
-        fig.tight_layout()
-        fig.savefig(folder / "scores.png", dpi=100)
-        plt.close(fig)
-        image = '<img src="scores.png" alt="scores">'
+        import matplotlib  # noqa: F401
+        can_plot = True
     except ImportError:
-        pass
+        can_plot = False
+    sections = []
+    for i, f in enumerate(report["findings"]):
+        if not f["significant"]:
+            continue
+        image = ""
+        name = f"finding_{i}_{f['cause']}.png"
+        if can_plot and _plot_finding(f, folder / name):
+            image = f'<p><img src="{name}" alt="plot for {html.escape(f["cause"])}" width="700"></p>'
+        gain = ""
+        if f.get("gain"):
+            g = f["gain"]
+            where = {True: "held-out files", "regions": "held-out regions of the file",
+                     False: "in-sample (one file)"}.get(g.get("heldout"), "")
+            gain = (f"<table><tr><th>held-out check</th><th>before (profile)</th><th>after (extended)</th>"
+                    f"<th>change</th><th>verdict</th></tr><tr><td>{html.escape(g['metric'])}, {where}</td>"
+                    f"<td>{g['before']:.4g}</td><td>{g['after']:.4g}</td>"
+                    f"<td>{(g['after'] / g['before'] - 1) * 100 if g['before'] else 0:+.0f} %</td>"
+                    f"<td>{'kept' if f.get('kept') else 'rejected'}</td></tr></table>")
+        params = ""
+        if f.get("params"):
+            rows = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(_params_words({k: v}).split(' = ', 1)[-1])}</td></tr>"
+                           for k, v in f["params"].items() if k != "hull_points")
+            params = f"<table><tr><th>fitted parameter</th><th>value</th></tr>{rows}</table>"
+        title = f["cause"] if f["cause"] != "unexplained" else f"unexplained ({f.get('candidate') or 'no candidate'})"
+        sections.append(
+            f"<div class='finding'><h2>{html.escape(title)}</h2>"
+            f"<p>score {f['score']:.1f}, p = {f['p']:.2g}. <i>{html.escape(f['statistic'])}</i></p>"
+            f"<p>{html.escape(f['evidence'])}</p>{image}{params}<p class='gain'>{gain}</p></div>")
+    if not sections:
+        sections.append("<p>No significant difference between the measured files and the simulation.</p>")
     rows = "".join(
-        f"<tr><td>{html.escape(str(f['cause']))}</td><td>{'yes' if f['significant'] else 'no'}</td>"
-        f"<td>{f['score']:.2f}</td><td>{html.escape(f['evidence'])}</td>"
-        f"<td>{html.escape(json.dumps(_plain(f.get('gain'))))}</td></tr>" for f in report["findings"])
+        f"<tr><td>{html.escape(str(f['cause']))}</td><td class='{'yes' if f['significant'] else ''}'>"
+        f"{'yes' if f['significant'] else 'no'}</td><td>{f['score']:.2f}</td><td>{f['p']:.2g}</td>"
+        f"<td>{html.escape(f['evidence'])}</td></tr>" for f in report["findings"])
+    head = html.escape(summary(report).splitlines()[0])
     page = folder / "report.html"
-    atomic_write_bytes(page, (f"<html><head><meta charset='utf-8'><title>g2r-diagnose</title></head><body>"
-                    f"<h1>g2r-diagnose</h1><pre>{html.escape(summary(report))}</pre>{image}"
-                    f"<table border=1><tr><th>cause</th><th>significant</th><th>score</th><th>evidence</th>"
-                    f"<th>held-out gain</th></tr>{rows}</table></body></html>\n").encode())
+    atomic_write_bytes(page, (
+        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>g2r-diagnose</title><style>{_STYLE}</style></head>"
+        f"<body><h1>g2r-diagnose</h1><p>{head}</p>{''.join(sections)}"
+        f"<h2>All tests</h2><table><tr><th>cause</th><th>significant</th><th>score</th><th>p</th><th>evidence</th></tr>"
+        f"{rows}</table><p>time {report['timing']['total_s']:.1f} s</p></body></html>\n").encode())
     return page

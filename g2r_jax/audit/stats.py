@@ -369,6 +369,9 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: 
     top = np.where(np.isfinite(spike), spike, 1.0) - 2.0 / span
     # on the floor-subtracted planes, like every statistic but the floor: a pedestal is black_level's
     nlf = evidence.nlf_halves(planes, clip=top - floor, clip_low=-black / span + 2.0 / span - floor, seed=seed)
+    blocks = planes[0].size / 64
+    # small files: the neighbour-pair NLF, compared with simulated files over files
+    nlf_var, nlf_level = noise_level_function(planes, clip, band) if blocks < 3000 else (None, None)
     r2 = radial_r2(planes.shape[1:])
     greens = tuple(int(i) for i in np.flatnonzero(np.asarray(info.cfa_pattern) == 1)[:2])
     from .. import fit as _fit
@@ -378,7 +381,8 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: 
     shading_planes = block_means(planes, binning) if binning > 1 else planes
     gain_map = gain_map_log_corner(getattr(info, "opcode_lists", None), np.shape(mosaic), info.cfa_pattern)
     return {
-        "dark_floor": floor, "clip": clip, "band": band, "nlf": nlf,
+        "dark_floor": floor, "clip": clip, "band": band, "nlf": nlf, "blocks": blocks,
+        "nlf_var": nlf_var, "nlf_level": nlf_level,
         "quantisation": evidence.quantisation_variance(black, white),
         "iso": float(iso), "green": green_ratio(planes, greens, clip, floor),
         "shading": shading_profile(shading_planes, clip) - gain_map, "gain_map_shading": gain_map,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Cause, as_profile_dtype, effects_replaced
+from .base import Cause, as_profile_dtype, effects_replaced, file_spans
 
 
 class Banding(Cause):
@@ -17,6 +17,13 @@ class Banding(Cause):
     metric = "rms difference of row/column offset variance"
     key = "band"
     floor, tolerance = 1e-8, 1e-6
+    unit = "std of row / column offsets (DN)"
+
+    def user_units(self, values, files):
+        return np.sqrt(np.maximum(values, 0)) * file_spans(files).mean(1, keepdims=True)
+
+    def component_labels(self, k):
+        return ["rows", "columns"]
 
     def fit(self, measured, simulated, profile, *, seed=0):
         delta = self.mean_difference(measured, simulated, profile)

@@ -47,6 +47,11 @@ def as_profile_dtype(profile, values):
     return jnp.asarray(values, profile.effects.black_pedestal.dtype)
 
 
+def file_spans(files) -> np.ndarray:
+    """(n, 4) WhiteLevel - BlackLevel in DN of each file (from its statistics)."""
+    return np.stack([np.resize(np.asarray(f.get("span", 1.0), np.float64), 4) for f in files])
+
+
 def span(profile) -> np.ndarray:
     """(4,) WhiteLevel - BlackLevel in DN."""
     return float(profile.white_level) - np.asarray(profile.black_level, np.float64)
@@ -136,6 +141,26 @@ class Cause:
 
     def is_significant(self, finding: dict, threshold: float) -> bool:
         return bool(finding["p"] < threshold and finding["magnitude"] >= self.tolerance)
+
+    # -- the plot that makes the case (report.py draws it)
+    unit: str = "statistic"
+
+    def user_units(self, values: np.ndarray, files: list) -> np.ndarray:
+        """The statistic in the units a user reads (override: DN, % of range, ratio)."""
+        return values
+
+    def component_labels(self, k: int) -> list:
+        return ["(0,0)", "(0,1)", "(1,0)", "(1,1)"][:k] if k == 4 else [str(j) for j in range(k)]
+
+    def plot(self, measured, simulated, profile, extended=None) -> dict | None:
+        """Plot data for the report: per component, measured against simulated files."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            m = self.user_units(self.vectors(measured, profile), measured)
+            s = self.user_units(self.vectors(simulated, profile), simulated)
+        return {"kind": "strip", "measured": np.asarray(m).tolist(), "simulated": np.asarray(s).tolist(),
+                "unit": self.unit, "labels": self.component_labels(np.shape(m)[1]),
+                "title": f"{self.name}: measured files against files simulated by the profile"}
 
     # -- how its extension is fitted and applied
     def fit(self, measured, simulated, profile, *, seed: int = 0) -> dict:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Cause, as_profile_dtype, effects_replaced, per_colour, span
+from .base import Cause, as_profile_dtype, effects_replaced, file_spans, per_colour, span
 
 
 class BlackLevel(Cause):
@@ -18,6 +18,10 @@ class BlackLevel(Cause):
     metric = "rms difference of the dark floor (fraction of range)"
     key = "dark_floor"
     floor, tolerance = 1e-4, 1e-3
+    unit = "dark floor above the BlackLevel tag (DN)"
+
+    def user_units(self, values, files):
+        return values * file_spans(files)
 
     def fit(self, measured, simulated, profile, *, seed=0):
         # one added pedestal per colour: two noisy per-green estimates would leave a Gr/Gb offset

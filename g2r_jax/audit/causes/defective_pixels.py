@@ -65,6 +65,9 @@ class DefectivePixels(Cause):
                 "evidence": f"{found['count']} pixels are outliers in many measured files (chance level "
                             f"{found['expected']:.3g}), {control_count} expected from the profile", "difference": []}
 
+    def plot(self, measured, simulated, profile, extended=None):
+        return None
+
     def fit(self, measured, simulated, profile, *, seed=0):
         found = _consistent(_group(measured))
         effects = profile.effects

@@ -18,6 +18,10 @@ class ExposureDistribution(Cause):
     metric = "distance of (mean, std) of log2 centre brightness"
     key = "brightness"
     floor, tolerance = 0.01, 0.1
+    unit = "log2 brightness of the image centre (stops)"
+
+    def component_labels(self, k):
+        return ["centre"]
 
     def fit(self, measured, simulated, profile, *, seed=0):
         m = self.vectors(measured, profile)[:, 0]

@@ -18,6 +18,13 @@ class GreenImbalance(Cause):
     metric = "difference of median log(G2/G1)"
     key = "green"
     floor, tolerance = 5e-4, 5e-3
+    unit = "median G2 / G1 of 4x4 blocks"
+
+    def user_units(self, values, files):
+        return np.exp(values)
+
+    def component_labels(self, k):
+        return ["G2 / G1"]
 
     def fit(self, measured, simulated, profile, *, seed=0):
         greens = np.flatnonzero(np.asarray(profile.cfa_pattern) == 1)[:2]

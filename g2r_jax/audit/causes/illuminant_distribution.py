@@ -63,6 +63,14 @@ class IlluminantDistribution(Cause):
                             f"density under the profile {likelihood['observed']:.2f} (bootstrap p = "
                             f"{likelihood['p']:.4g})", "difference": []}
 
+    def plot(self, measured, simulated, profile, extended=None):
+        points = neutral_chromaticities(measured)
+        if not len(points):
+            return None
+        return {"kind": "neutrals", "measured": points.tolist(),
+                "model": illuminant_samples(profile.illuminants, 300, 0).tolist(),
+                "extended": None if extended is None else illuminant_samples(extended.illuminants, 300, 1).tolist()}
+
     def fit(self, measured, simulated, profile, *, seed=0):
         points = neutral_chromaticities(measured)
         model = _illuminants.fit_mixture(points, seed=seed)

@@ -31,6 +31,10 @@ class LensShading(Cause):
     metric = "rms difference of corner log gain"
     key = "shading"
     floor, tolerance = 0.005, 0.05
+    unit = "corner gain left after the file's own GainMap (1 = none)"
+
+    def user_units(self, values, files):
+        return np.exp(values)
 
     def fit(self, measured, simulated, profile, *, seed=0):
         shading = shading_fit(profile, per_colour(profile, self.mean_difference(measured, simulated, profile)))

@@ -17,6 +17,14 @@ class NoiseCorrelation(Cause):
     key = "noise_corr"
     floor, tolerance = 0.005, 0.05
     extensible = False
+    unit = "var(lag-2 difference) / var(lag-1 difference) (1 = white)"
+
+    def user_units(self, values, files):
+        import numpy as np
+        return np.exp(values)
+
+    def component_labels(self, k):
+        return ["rows"]
 
 
 CAUSE = NoiseCorrelation()

@@ -17,6 +17,10 @@ class WhiteLevel(Cause):
     metric = "rms difference of the clipping level (fraction of range)"
     key = "clip"
     floor, tolerance = 3e-4, 3e-3
+    unit = "clipping level above the dark floor (% of range)"
+
+    def user_units(self, values, files):
+        return 100 * values
 
     def fit(self, measured, simulated, profile, *, seed=0):
         level = float(profile.effects.clip_level) + float(np.median(self.mean_difference(measured, simulated, profile)))
