@@ -77,7 +77,7 @@ def check_measured(items, *, on_error=None) -> list:
     file to `on_error(line)` and the usable items returned."""
     from ..io.dng_read import read_dng_info, require_bayer_cfa
 
-    usable = []
+    usable, refused = [], []
     for item in items:
         try:
             if not (isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[1], DngInfo)):
@@ -86,7 +86,11 @@ def check_measured(items, *, on_error=None) -> list:
         except DngError as error:
             if on_error is None:
                 raise
-            on_error(str(error))
+            refused.append(error)
+    if not usable and len(refused) == 1:
+        raise refused[0]
+    for error in refused:
+        on_error(str(error))
     if not usable:
         raise DngError(folder_of(items), f"no usable measured DNG files ({len(items)} refused)")
     return usable
