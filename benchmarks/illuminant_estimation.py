@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 import time
 from pathlib import Path
 
@@ -76,7 +77,8 @@ class PatchwiseEstimator:
         features = log_chroma(patches[:, _charts.CHROMATIC])
         design = np.concatenate([features, np.ones(features.shape[:2] + (1,))], -1)
         per_patch = np.einsum("npk,pkj->npj", design, np.stack(self.maps))
-        with np.errstate(invalid="ignore"):
+        with warnings.catch_warnings():   # an image without a usable chromatic patch: NaN, not scored
+            warnings.simplefilter("ignore", RuntimeWarning)
             estimate = np.nanmean(per_patch, axis=1)
         return np.stack([np.exp(estimate[:, 0]), np.ones(len(estimate)), np.exp(estimate[:, 1])], -1)
 
@@ -106,7 +108,8 @@ def sampled_neutrals(illuminants, n, seed):
 def statistics(errors) -> dict:
     e = np.sort(errors[np.isfinite(errors)])
     q = max(1, len(e) // 4)
-    return {"mean": e.mean(), "median": np.median(e), "best25": e[:q].mean(), "worst25": e[-q:].mean()}
+    return {"mean": e.mean(), "median": np.median(e), "best25": e[:q].mean(), "worst25": e[-q:].mean(),
+            "n": len(e)}
 
 
 def run(charts_path, profile_path, *, train_per_fold=TRAIN_PER_FOLD, seed=0, progress=print) -> dict:
@@ -181,6 +184,9 @@ def main(argv=None) -> int:
     print(f"\nilluminant estimation on {result['n_images']} real charts ({Path(args.charts).name}), "
           f"3-fold, {result['train_per_fold']} synthetic charts per fold; angular error in degrees\n")
     print(table(result))
+    scored = {s["n"] for s in result["statistics"].values()}
+    print(f"\nscored images: {', '.join(map(str, sorted(scored)))} of {result['n_images']} "
+          f"(an image without any usable chromatic patch has no estimate)")
     if args.figure:
         figure(result, args.figure, f"Trained on synthetic charts, tested on {Path(args.charts).stem}")
         print(f"\nfigure: {args.figure}")
