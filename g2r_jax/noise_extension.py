@@ -72,7 +72,7 @@ def fit_level_function(estimate, *, knots=DEFAULT_KNOTS, monotone: bool = False,
             return theta[0] + np.concatenate([[0.0], np.cumsum(np.logaddexp(0.0, theta[1:]))])
 
         def residuals(theta):
-            log_v = values(theta)
+            log_v = np.clip(values(theta), -80.0, 5.0)
             model = np.log(np.interp(signal, knots, np.exp(log_v)))
             return np.concatenate([(model - np.log(variance)) / se, smoothness * np.diff(log_v, 2)])
 
@@ -81,7 +81,7 @@ def fit_level_function(estimate, *, knots=DEFAULT_KNOTS, monotone: bool = False,
             theta0 = np.concatenate([[start[0]], np.log(np.expm1(steps))])
         else:
             theta0 = start
-        out[p] = np.exp(values(least_squares(residuals, theta0, method="lm", xtol=1e-10, ftol=1e-10).x))
+        out[p] = np.exp(np.clip(values(least_squares(residuals, theta0, method="lm", xtol=1e-10, ftol=1e-10).x), -80.0, 5.0))
     return out
 
 

@@ -65,7 +65,7 @@ def measure_from_pixels(info, *, n_bootstrap: int = 50):
     try:
         mosaic = read_dng_pixels(info.path, info)
     except Exception as error:  # noqa: BLE001 - DngError and anything LibRaw raises: reported, not fatal
-        return None, f"pixels not decodable: {getattr(error, 'problem', error)}"
+        return None, str(getattr(error, "problem", error))
     from .audit.stats import to_normalised_planes
 
     black, white = _levels(info)
@@ -97,7 +97,7 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
         if measured is not None:
             measured_rows.setdefault(iso, []).append(np.stack(measured, axis=1))
             continue
-        problems.append(f"{Path(info.path).name}: {reason}")
+        problems.append((Path(info.path).name, reason))
         if kind == "degenerate":
             table = _tag_per_position(info, cfa_pattern)
             black, white = _levels(info)
@@ -115,10 +115,13 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
     n_floored = sum(len(v) for iso, v in floored_rows.items() if iso not in tag_rows and iso not in measured_rows)
     if bad:
         listing = "; ".join(f"{kind}: {', '.join(names)}" for kind, names in sorted(bad.items()))
-        outcome = ("noise measured from their pixels" if not problems else
-                   f"could not measure all of them ({'; '.join(problems)})")
+        by_reason = {}
+        for name, reason in problems:
+            by_reason.setdefault(reason, []).append(name)
+        why = "; ".join(f"{', '.join(names)}: {reason}" for reason, names in by_reason.items())
+        outcome = "noise measured from their pixels" if not problems else f"could not measure all of them ({why})"
         if not rows:
-            outcome = f"no noise could be measured ({'; '.join(problems)}); the profile simulates NO NOISE"
+            outcome = f"no noise could be measured ({why}); the profile simulates NO NOISE"
         warnings.warn(f"no usable NoiseProfile ({listing}): {outcome}", stacklevel=2)
     if not rows:
         isos = np.asarray(all_isos)

@@ -157,6 +157,11 @@ def check_document(document, source: str = "<profile>") -> None:
         c.numbers(noise.get("shot"), "noise.shot", low=0, high=1)
         c.numbers(noise.get("read"), "noise.read", low=0, high=1)
         c.numbers(noise.get("iso_range"), "noise.iso_range", low=0, high=1e7, low_open=True, optional=True)
+        level = c.obj(noise.get("level_function"), "noise.level_function")
+        if level:   # the noise shape of g2r_jax.noise_shape; shapes are checked by the loader
+            c.numbers(level.get("knots"), "noise.level_function.knots", low=-1, high=2)
+            c.numbers(level.get("variance"), "noise.level_function.variance", low=0, high=1)
+        c.numbers(noise.get("correlation_kernel"), "noise.correlation_kernel", low=-100, high=100, optional=True)
 
     effects = c.obj(document.get("effects"), "effects")
     pedestal = c.numbers(effects.get("black_pedestal"), "effects.black_pedestal", low=-MAX_LEVEL, high=MAX_LEVEL,
