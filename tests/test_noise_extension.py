@@ -138,7 +138,6 @@ def test_fit_recovers_injected_level_function_and_kernel():
 
 
 @pytest.mark.data
-@pytest.mark.slow
 def test_gopro_frame_extension_has_a_heldout_gain(shared_data):
     """Issue 9 on the real HERO6 frame: fit the extension on half the regions, judge it on the
     other half (benchmarks/noise_gopro.py reports the full figures)."""
