@@ -43,14 +43,26 @@ def normalised_kernel(kernel):
     return kernel / jnp.sqrt(jnp.maximum(jnp.sum(kernel**2, axis=(1, 2), keepdims=True), 1e-30))
 
 
-def correlate_planes(white, kernel):
-    """White normals (4, h, w) filtered within each plane by its 3 x 3 kernel, circularly
-    (periodic boundary: every output sums nine distinct draws, so the variance is the same at
-    the borders as inside). Output[y, x] = sum_{i,j} k[i, j] white[y + i - 1, x + j - 1]."""
+def correlated_normals(normal_at_counter, mosaic_shape, kernel, per_position, valid_shape=None):
+    """Normals of an (H, W) mosaic filtered within each CFA plane by its 3 x 3 kernel.
+
+    Pixel (y, x) of tile position p gets sum_{i,j} k_p[i, j] n(y + 2(i - 1), x + 2(j - 1)), the
+    neighbours taken in its own CFA plane with periodic wrap inside the image (so every output
+    sums nine distinct draws: the same variance at the borders as inside). n(y, x) is the
+    noise stream's draw at counter y * w + x (`normal_at_counter`), recomputed for each offset
+    rather than shifted, so that with `valid_shape` (h, w) (a zero-padded mosaic) the image gets
+    exactly the values it gets unpadded."""
+    height, width = mosaic_shape
+    h, w = (height, width) if valid_shape is None else valid_shape
+    h, w = jnp.asarray(h, jnp.int32), jnp.asarray(w, jnp.int32)
+    rows = jax.lax.broadcasted_iota(jnp.int32, mosaic_shape, 0)
+    cols = jax.lax.broadcasted_iota(jnp.int32, mosaic_shape, 1)
     kernel = normalised_kernel(kernel)
-    out = jnp.zeros_like(white)
+    out = None
     for i in range(3):
         for j in range(3):
-            shifted = jnp.roll(white, (1 - i, 1 - j), axis=(1, 2))
-            out = out + kernel[:, i, j][:, None, None] * shifted
+            r = jnp.remainder(rows + 2 * (i - 1), h)
+            c = jnp.remainder(cols + 2 * (j - 1), w)
+            term = per_position(kernel[:, i, j], mosaic_shape) * normal_at_counter((r * w + c).astype(jnp.uint32))
+            out = term if out is None else out + term
     return out

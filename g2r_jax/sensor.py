@@ -138,19 +138,21 @@ def add_noise(key, mosaic, shot, read, *, level_knots=None, level_variance=None,
 
 
 def _add_shaped_noise(key, mosaic, shot, read, level_knots, level_variance, correlation_kernel, valid_shape=None):
-    """`add_noise` with a noise level function and/or a correlation kernel, on the planes layout
-    (same normals as `add_noise`: pixel (y, x) draws its plane element's normal)."""
+    """`add_noise` with a noise level function and/or a correlation kernel (`noise_shape`): the
+    same stream of draws, each pixel's own, filtered within its CFA plane when a kernel is given."""
     from . import noise_shape
 
-    planes = to_planes(mosaic)
     if level_variance is not None:
-        variance = noise_shape.level_function_planes(planes, level_knots, level_variance)
+        variance = from_planes(noise_shape.level_function_planes(to_planes(mosaic), level_knots, level_variance))
     else:
-        variance = shot[:, None, None] * jnp.maximum(planes, 0) + read[:, None, None]
-    normals = to_planes(standard_normal_planes(key, mosaic.shape, mosaic.dtype, valid_shape=valid_shape))
-    if correlation_kernel is not None:
-        normals = noise_shape.correlate_planes(normals, correlation_kernel.astype(mosaic.dtype))
-    return from_planes(planes + jnp.sqrt(jnp.maximum(variance, 0.0)) * normals)
+        variance = per_position(shot, mosaic.shape) * jnp.maximum(mosaic, 0) + per_position(read, mosaic.shape)
+    if correlation_kernel is None:
+        normals = standard_normal_planes(key, mosaic.shape, mosaic.dtype, valid_shape=valid_shape)
+    else:
+        normal_at = lambda counter: _normal_from_counter(key, counter).astype(mosaic.dtype)
+        normals = noise_shape.correlated_normals(normal_at, mosaic.shape, correlation_kernel.astype(mosaic.dtype),
+                                                 per_position, valid_shape)
+    return mosaic + jnp.sqrt(jnp.maximum(variance, 0.0)) * normals
 
 
 # ----------------------------------------------------------------------------- fast normal draws

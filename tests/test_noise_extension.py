@@ -70,6 +70,26 @@ def test_linear_level_function_and_identity_kernel_reproduce_the_default():
     assert 0.9 < np.std(field) / np.std(noise) < 1.1   # the kernel keeps the variance
 
 
+def test_shaped_noise_of_a_padded_mosaic_is_the_image_own():
+    """Zero-padded batches (mixed sizes) give each image exactly its unpadded noise."""
+    shaped = _with_shape(synthetic.demo_profile(), lambda knots, row: 1e-5 + 1e-4 * np.sqrt(knots)[None].repeat(4, 0),
+                         KERNEL)
+    mosaic = _linear_mosaic(5, 48, 64, 1.0)
+    padded = jnp.zeros((64, 96), jnp.float32).at[:48, :64].set(mosaic)
+    iso = jnp.asarray(100.0)
+    level = sensor.noise_level_at(iso, shaped.noise)
+
+    @jax.jit
+    def noisy(m, valid):
+        return sensor.add_noise(jax.random.PRNGKey(7), m, None, None, level_knots=shaped.noise.level_knots,
+                                level_variance=level, correlation_kernel=shaped.noise.correlation_kernel,
+                                valid_shape=valid)
+
+    alone = noisy(mosaic, jnp.asarray([48, 64], jnp.int32))
+    inside = noisy(padded, jnp.asarray([48, 64], jnp.int32))[:48, :64]
+    np.testing.assert_allclose(np.asarray(inside), np.asarray(alone), rtol=0, atol=1e-7)
+
+
 def test_json_round_trip_and_validation():
     shaped = _with_shape(synthetic.demo_profile(), lambda knots, row: 1e-5 + 1e-4 * knots[None].repeat(4, 0), KERNEL)
     document = _profile.profile_to_dict(shaped)
