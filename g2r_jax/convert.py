@@ -126,6 +126,42 @@ def _load(path: Path, crop_odd: bool):
     return np.ascontiguousarray(array)
 
 
+BUCKET_STEP = 64          # bucket sides are multiples of this
+MAX_PADDING_FACTOR = 4.0  # an image shares a bucket of at most this many times its own area
+
+
+def _probe_size(path: Path):
+    """(height, width) from the file header (no decoding), None when unknown."""
+    try:
+        from PIL import Image
+
+        with Image.open(path) as image:
+            width, height = image.size
+        return height, width
+    except Exception:  # noqa: BLE001 - unknown sizes get an exact-size bucket when decoded
+        return None
+
+
+def plan_buckets(sizes):
+    """Padded shapes for a set of (h, w): the largest sizes first, each reusing an existing
+    bucket that holds it at most `MAX_PADDING_FACTOR` times its area, else opening one rounded
+    up to `BUCKET_STEP`. A compiled program per bucket, not per size (padding costs element-wise
+    work; a compilation costs seconds)."""
+    buckets = []
+    for height, width in sorted(set(sizes), key=lambda s: (-s[0] * s[1], s)):
+        if not any(h >= height and w >= width and h * w <= MAX_PADDING_FACTOR * height * width for h, w in buckets):
+            buckets.append((-(-height // BUCKET_STEP) * BUCKET_STEP, -(-width // BUCKET_STEP) * BUCKET_STEP))
+    return buckets
+
+
+def bucket_for(shape, buckets):
+    """The smallest planned bucket holding `shape` within the padding factor, else `shape`."""
+    height, width = shape
+    fits = [(h * w, (h, w)) for h, w in buckets
+            if h >= height and w >= width and h * w <= MAX_PADDING_FACTOR * height * width]
+    return min(fits)[1] if fits else (height, width)
+
+
 _COMPILED = {}
 
 
@@ -138,8 +174,8 @@ def _batched_unprocess(options: ConvertOptions, transfer: str, with_neutral: boo
                  options.lens_shading, options.colour)
 
     if signature not in _COMPILED:
-        def batch(keys, images, profile, neutrals, iso, lens_gain):
-            return unprocess_batch(keys, images, profile, transfer=transfer, noise=options.noise,
+        def batch(keys, images, profile, neutrals, iso, lens_gain, valid_shapes):
+            return unprocess_batch(keys, images, profile, transfer=transfer, noise=options.noise, valid_shapes=valid_shapes,
                                    effects=options.effects, recipe=options.recipe, colour=options.colour,
                                    neutral=neutrals if with_neutral else None,
                                    iso=iso if options.iso is not None else None,
@@ -217,26 +253,41 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
         window = max(2 * options.batch_size, options.workers)
         loading = {i: submit_load(i) for i in range(min(window, len(inputs)))}
         writing = []
-        pending = []   # (index, image) waiting for a batch partner of the same shape/transfer
+        # Images are zero-padded to a few bucket shapes (bit-identical output: `valid_shapes`),
+        # except with per-size lens gains or a noise correlation kernel, which see the padding.
+        bucketing = not options.lens_shading and getattr(profile.noise, "correlation_kernel", None) is None
+        sizes = [size for size in map(_probe_size, inputs) if size] if bucketing else []
+        buckets = plan_buckets([(h - h % 2, w - w % 2) for h, w in sizes])
+        pending = {}   # batch group (bucket, dtype, transfer) -> [(index, image)] waiting for partners
         in_flight = []  # batches dispatched to the device, handed to the writers one batch later
         next_to_load = len(loading)
 
         def hand_over(batch, mosaics, metadata):
             mosaics = np.asarray(mosaics)   # waits for this batch only: the next one is already queued
             metadata = {k: np.asarray(v) for k, v in metadata.items()}
-            for j, (index, _) in enumerate(batch):
-                writing.append(pool.submit(write, index, inputs[index], mosaics[j], {k: v[j] for k, v in metadata.items()}))
+            for j, (index, image) in enumerate(batch):
+                mosaic = mosaics[j, :image.shape[0], :image.shape[1]]
+                writing.append(pool.submit(write, index, inputs[index], mosaic, {k: v[j] for k, v in metadata.items()}))
             while len(writing) > window:    # bounded memory: writers keep up or the compute waits
                 _collect(writing.pop(0), inputs, records, report, progress)
 
-        def flush(batch):
+        def group_of(path, image):
+            shape = bucket_for(image.shape[:2], buckets) if bucketing else image.shape[:2]
+            return shape, image.dtype.str, _transfer_for(path, options.transfer)
+
+        def flush(group):
+            batch = pending.pop(group, [])
             if not batch:
                 return
-            transfer = _transfer_for(inputs[batch[0][0]], options.transfer)
+            shape, _, transfer = group
             count = len(batch)
             padded = batch + [batch[-1]] * (options.batch_size - count) if count < options.batch_size else batch
             keys = jnp.stack([file_key(options.seed, inputs[i].name) for i, _ in padded])
-            images = jnp.asarray(np.stack([image for _, image in padded]))
+            stacked = np.zeros((len(padded),) + tuple(shape) + padded[0][1].shape[2:], padded[0][1].dtype)
+            for j, (_, image) in enumerate(padded):
+                stacked[j, :image.shape[0], :image.shape[1]] = image
+            images = jnp.asarray(stacked)
+            valid_shapes = jnp.asarray([image.shape[:2] for _, image in padded], jnp.int32)
             with_neutral = neutrals is not None
             neutral_rows = (jnp.asarray(np.stack([neutrals[i] for i, _ in padded]), jnp.float32) if with_neutral
                             else jnp.ones((len(padded), 3), jnp.float32))
@@ -244,7 +295,7 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
             lens_gain = (jnp.asarray(lens_for(images.shape[1], images.shape[2])[0]) if options.lens_shading
                          else jnp.ones((), jnp.float32))
             mosaics, metadata = _batched_unprocess(options, transfer, with_neutral)(keys, images, profile, neutral_rows,
-                                                                                     iso, lens_gain)
+                                                                                     iso, lens_gain, valid_shapes)
             in_flight.append((batch, mosaics, metadata))   # asynchronous: decoding goes on meanwhile
             if len(in_flight) > 1:
                 hand_over(*in_flight.pop(0))
@@ -266,19 +317,15 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
                 next_to_load += 1
             if image is None:
                 continue
-            same = pending and (pending[0][1].shape == image.shape and pending[0][1].dtype == image.dtype and
-                                _transfer_for(inputs[pending[0][0]], options.transfer) == _transfer_for(path, options.transfer))
-            if pending and not same:
-                flush(pending)
-                pending = []
-            pending.append((index, image))
-            if len(pending) == options.batch_size:
-                flush(pending)
-                pending = []
+            group = group_of(path, image)
+            pending.setdefault(group, []).append((index, image))
+            if len(pending[group]) == options.batch_size:
+                flush(group)
             for done in [w for w in writing if w.done()]:
                 writing.remove(done)
                 _collect(done, inputs, records, report, progress)
-        flush(pending)
+        for group in list(pending):
+            flush(group)
         while in_flight:
             hand_over(*in_flight.pop(0))
         for done in writing:

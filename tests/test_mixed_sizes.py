@@ -1,0 +1,68 @@
+"""Mixed image sizes: zero-padding to a bucket shape gives the bytes of the unpadded image."""
+
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from g2r_jax import profile as pm
+from g2r_jax import sensor
+from g2r_jax.convert import ConvertOptions, convert_files, plan_buckets
+from g2r_jax.unprocess import unprocess_batch
+
+
+def _profile_with_every_effect():
+    profile = pm.load_profile("Canon600D")
+    effects = sensor.SensorEffects(
+        black_pedestal=jnp.array([1.0, 0.0, 2.0, 0.5]), clip_level=jnp.asarray(0.97),
+        channel_gain=jnp.array([1.0, 1.02, 0.98, 1.0]), shading=jnp.array([[-0.3, 0.05]] * 4),
+        defect_rows=jnp.array([3, 9], jnp.int32), defect_cols=jnp.array([5, 1], jnp.int32),
+        defect_values=jnp.array([1.0, 0.0]), row_noise_std=jnp.asarray(0.002), column_noise_std=jnp.asarray(0.001))
+    return pm.replace(profile, effects=effects)
+
+
+def test_padded_batch_gives_each_image_its_unpadded_bytes():
+    profile = _profile_with_every_effect()
+    rng = np.random.default_rng(0)
+    sizes = [(10, 14), (16, 24), (12, 8)]
+    images = [rng.integers(0, 256, size + (3,), dtype=np.uint8) for size in sizes]
+    keys = jax.random.split(jax.random.PRNGKey(1), 3)
+    batch = jax.jit(lambda k, im, v: unprocess_batch(k, im, profile, valid_shapes=v, return_clean=True))
+    padded = np.zeros((3, 16, 24, 3), np.uint8)
+    for j, image in enumerate(images):
+        padded[j, :image.shape[0], :image.shape[1]] = image
+    noisy, clean, _ = batch(keys, jnp.asarray(padded), jnp.asarray(sizes, jnp.int32))
+    for j, image in enumerate(images):
+        h, w = image.shape[:2]
+        alone_noisy, alone_clean, _ = batch(keys[j:j + 1], jnp.asarray(image[None]), jnp.asarray([[h, w]], jnp.int32))
+        np.testing.assert_array_equal(np.asarray(noisy[j, :h, :w]), np.asarray(alone_noisy[0]))
+        np.testing.assert_array_equal(np.asarray(clean[j, :h, :w]), np.asarray(alone_clean[0]))
+    assert np.any(np.asarray(noisy) != np.asarray(clean))
+
+
+def test_buckets_hold_many_sizes_within_the_padding_factor():
+    sizes = [(3024, 4032), (3000, 4000), (2160, 3840), (1080, 1920), (720, 1280), (2448, 3264)]
+    buckets = plan_buckets(sizes)
+    assert len(buckets) < len(sizes)
+    for h, w in sizes:
+        assert any(bh >= h and bw >= w and bh * bw <= 4 * h * w for bh, bw in buckets)
+
+
+def test_a_file_alone_and_in_a_mixed_folder_gives_the_same_bytes(tmp_path):
+    from PIL import Image
+
+    rng = np.random.default_rng(3)
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    for name, (h, w) in {"a": (40, 60), "b": (34, 50), "c": (48, 64), "d": (40, 60)}.items():
+        Image.fromarray(rng.integers(0, 256, (h, w, 3), dtype=np.uint8)).save(folder / f"{name}.png")
+    options = ConvertOptions(progress=False, batch_size=3)
+    files = sorted(folder.glob("*.png"))
+    mixed = convert_files(files, pm.load_profile("Canon600D"), tmp_path / "out_mixed", options=options)
+    assert mixed.ok
+    for path in files:
+        alone = convert_files([path], pm.load_profile("Canon600D"), tmp_path / f"out_{path.stem}", options=options)
+        assert alone.ok
+        assert (tmp_path / f"out_{path.stem}" / f"{path.stem}.dng").read_bytes() == \
+            (tmp_path / "out_mixed" / f"{path.stem}.dng").read_bytes()
