@@ -126,10 +126,28 @@ def test_spectral_beats_matrix_off_the_locus_canon600d(shared_data):
     model with the true light reproduces the off-locus gain over the DNG matrices."""
     sensitivities = read_sensitivities(shared_data / CANON_600D_JSON).values
     profile = g2r_jax.load_profile("Canon600D", dtype=np.float64)
-    summary = accuracy.summarise(accuracy.colour_table(sensitivities, profile.colour, jakob_hanika=False,
+    summary = accuracy.summarise(accuracy.colour_table(sensitivities, profile.colour, jakob_hanika="lattice",
                                                        lamp_families=()))
-    matrix, spectral = summary["matrix"], summary["spectral (true light)"]
+    matrix = summary["matrix"]
     assert matrix["off"] > 2.5                      # the matrix model's failure the issue measured
-    assert spectral["off"] <= 1.35 and spectral["off"] < 0.5 * matrix["off"]
-    assert spectral["locus"] <= matrix["locus"]
-    assert spectral["HP1"][0] < 0.5 * matrix["HP1"][0]
+    for model, off_limit in (("spectral (true light)", 1.35), ("jakob2019 lattice (true light)", 1.3)):
+        spectral = summary[model]
+        assert spectral["off"] <= off_limit and spectral["off"] < 0.5 * matrix["off"], model
+        assert spectral["locus"] <= matrix["locus"], model
+        assert spectral["HP1"][0] < 0.5 * matrix["HP1"][0], model
+    # the light unprocess infers from a sodium lamp's neutral is the sodium family: same gain
+    with_lamps = accuracy.summarise(accuracy.colour_table(sensitivities, profile.colour, jakob_hanika=None,
+                                                          lamp_families=("HP1",)))
+    assert with_lamps["spectral (inferred light)"]["HP1"][0] < 0.5 * matrix["HP1"][0]
+
+
+def test_jakob_hanika_stage_on_grey_equals_the_linear_stage(spectral_s20fe):
+    # a grey surface upsamples to a flat spectrum in both methods, a saturated one does not
+    grey = np.full((4, 6, 3), 0.5, np.float32)
+    saturated = np.zeros((4, 6, 3), np.float32)
+    saturated[..., 0] = 0.8
+    run = jax.jit(lambda image, colour: g2r_jax.unprocess(
+        jax.random.PRNGKey(1), image, spectral_s20fe, colour=colour, transfer="linear", noise=False,
+        effects=False, exposure_gain=1.0, quantize=False)[0], static_argnums=1)
+    np.testing.assert_allclose(run(grey, "spectral-jakob2019"), run(grey, "spectral"), rtol=1e-4)
+    assert np.abs(np.asarray(run(saturated, "spectral-jakob2019")) - np.asarray(run(saturated, "spectral"))).max() > 1.0

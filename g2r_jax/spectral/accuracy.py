@@ -127,25 +127,41 @@ def inferred_light(neutral, sensitivities, colour_model, lamp_families=()) -> np
     return np.asarray(spectrum, np.float64)
 
 
-def colour_table(sensitivities, colour_model, *, lamp_families=tables.LAMP_FAMILIES, jakob_hanika: bool = True,
+def jakob_hanika_lattice_reflectances(srgb) -> np.ndarray:
+    """Jakob-Hanika reflectances as `unprocess(colour="spectral-jakob2019")` gets them: trilinear
+    interpolation of the shipped lattice (the camera response is linear in the reflectance, so
+    interpolating reflectances or responses is the same)."""
+    import jax.numpy as jnp
+
+    from .upsampling import lattice, trilinear
+
+    nodes, reflectances = lattice()
+    return np.asarray(trilinear(jnp.asarray(reflectances), jnp.asarray(np.clip(srgb, 0, 1)), jnp.asarray(nodes)),
+                      np.float64)
+
+
+def colour_table(sensitivities, colour_model, *, lamp_families=tables.LAMP_FAMILIES, jakob_hanika="direct",
                  simulated_sensitivities=None) -> dict:
     """Chromatic mean angular error per light and model.
 
     **Arguments:** `sensitivities` (81, 3): the ground-truth camera; `colour_model`: its DNG
     matrices (`DngColourModel`); `lamp_families`: the families the inferred light may use;
     `simulated_sensitivities`: the sensitivities the spectral model uses (default: the true ones;
-    pass estimated ones to measure the estimate).
+    pass estimated ones to measure the estimate); `jakob_hanika`: 'direct' (colour-science's
+    optimiser per patch), 'lattice' (the shipped lattice, as `unprocess` does), 'both' or None.
 
     **Returns:** {model: {light: (mean, max)}} for models `matrix`, `spectral (true light)`,
     `spectral (inferred light)`, and with `jakob_hanika` `jakob2019 (true light)`,
-    `jakob2019 (inferred light)`.
+    `jakob2019 (inferred light)` (and `jakob2019 lattice (...)`).
     """
     truth_s = np.asarray(sensitivities, np.float64)
     model_s = truth_s if simulated_sensitivities is None else np.asarray(simulated_sensitivities, np.float64)
     srgb = colour_checker_srgb()
     reflectances = {"spectral": mallett_yuksel_reflectances(srgb)}
-    if jakob_hanika:
+    if jakob_hanika in ("direct", "both"):
         reflectances["jakob2019"] = _colour_checker_jakob_hanika()
+    if jakob_hanika in ("lattice", "both"):
+        reflectances["jakob2019 lattice"] = jakob_hanika_lattice_reflectances(srgb)
     results = {}
     for name, light in {**locus_lights(), **off_locus_lights()}.items():
         truth = recorded(truth_s, light)[CHROMATIC_PATCHES]

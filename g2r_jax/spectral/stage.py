@@ -22,7 +22,6 @@ matrices and the neutrals of both lights, AsShotNeutral the response of the domi
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 
 from .. import colour as _colour
@@ -80,26 +79,40 @@ def jakob_hanika_conditions(neutral, profile, recipe: str = "dng"):
     light["camera_lattice"] = table
     # the matrix of the linear method, for the highlight test of `mosaic` (grey level of a pixel)
     basis = jnp.asarray(tables.mallett_yuksel_basis(), weighted.dtype)
-    light["srgb_to_wb_camera"] = (weighted.T @ basis) / (weighted.sum(0)[:, None])
+    light["srgb_to_wb_camera"] = (weighted.T @ basis) / weighted.sum(0)[:, None]
     return light
 
 
 def jakob_hanika_mosaic(linear, conditions, cfa_pattern, highlight_safe: bool):
-    """Camera RGB by trilinear interpolation of the node table; values above 1 (HDR input) are
-    scaled into the cube and back (the spectrum of a brighter surface of the same colour)."""
-    from ..unprocess import HIGHLIGHT_INFLECTION
-    from .upsampling import lattice, trilinear
+    """Camera RGB by trilinear interpolation of the node table, only the channel each pixel keeps
+    (8 scalar gathers a pixel from a flat (nodes^3 * 4) table: one column per tile position).
+    Values above 1 (HDR input) are scaled into the cube and back (a brighter surface of the same
+    colour). The highlight test uses the grey level of the linear method's matrix."""
+    from ..unprocess import HIGHLIGHT_INFLECTION, _dot_channels
+    from .upsampling import lattice
 
     nodes, _ = lattice()
+    n = len(nodes)
     shape = linear.shape[:2]
-    scale = jnp.maximum(jnp.max(linear, axis=-1, keepdims=True), 1.0)
-    camera = trilinear(conditions["camera_lattice"], linear / scale, jnp.asarray(nodes)) * scale
-    channel = _sensor.per_position(jax.nn.one_hot(cfa_pattern, 3, dtype=camera.dtype), shape)
-    kept = jnp.sum(camera * channel, axis=-1)
+    per_position = conditions["camera_lattice"][..., cfa_pattern].reshape(-1)          # (n^3 * 4,)
+    scale = jnp.maximum(jnp.max(linear, axis=-1), 1.0)
+    position = jnp.clip(linear / scale[..., None], 0.0, 1.0) * (n - 1)
+    low = jnp.clip(jnp.floor(position), 0, n - 2)
+    fraction = position - low
+    low = low.astype(jnp.int32)
+    tile = _sensor.per_position(jnp.arange(4, dtype=jnp.int32), shape)
+    base = ((low[..., 0] * n + low[..., 1]) * n + low[..., 2]) * 4 + tile
+    kept = 0.0
+    for corner in range(8):
+        dr, dg, db = (corner >> 2) & 1, (corner >> 1) & 1, corner & 1
+        weight = ((fraction[..., 0] if dr else 1 - fraction[..., 0]) * (fraction[..., 1] if dg else 1 - fraction[..., 1])
+                  * (fraction[..., 2] if db else 1 - fraction[..., 2]))
+        kept = kept + weight * per_position[base + ((dr * n + dg) * n + db) * 4]
+    kept = kept * scale
     gain = _sensor.per_position(conditions["gains"][cfa_pattern], shape)
     if not highlight_safe:
         return kept * gain
-    gray = jnp.mean(camera, axis=-1)
+    gray = _dot_channels(linear, jnp.mean(conditions["srgb_to_wb_camera"], axis=0))
     mask = (jnp.maximum(gray - HIGHLIGHT_INFLECTION, 0.0) / (1.0 - HIGHLIGHT_INFLECTION)) ** 2
     return kept * jnp.maximum(mask + (1.0 - mask) * gain, gain)
 
