@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from . import tables
-from .estimate import BASIS_PATH, build_basis, calibration_light, estimate_from_matrices
+from .estimate import BASIS_PATH, PRIOR_WEIGHT, build_basis, calibration_light, estimate_from_matrices
 from .upsampling import LATTICE_PATH, jakob_hanika_coefficients_for_srgb
 
 _WORDS = re.compile(r"\b(eos|digital|ilce|dsc|dc)\b")
@@ -66,7 +66,7 @@ def spectral_angle(a, b) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(cosine, -1, 1)))
 
 
-def leave_one_out(data_dir, *, n_components: int = 6, prior_weight: float = 1.0) -> list[dict]:
+def leave_one_out(data_dir, *, n_components: int = 6, prior_weight: float = PRIOR_WEIGHT) -> list[dict]:
     """For every camera: basis from all other cameras (both sources' copies held out), matrices
     synthesised for A and D65 from its measured sensitivities on the 190 training reflectances,
     estimate from those matrices; the spectral angle per channel to the measured curves."""

@@ -24,7 +24,7 @@ import numpy as np
 from . import tables
 
 BASIS_PATH = Path(__file__).resolve().parent / "data" / "sensitivity_basis.json"
-PRIOR_WEIGHT = 1.0          # multiplies the prior's precision; chosen by leave-one-out (build_tables)
+PRIOR_WEIGHT = 100.0        # multiplies the prior precision; see README "Spectral sensor model" for the choice
 ILLUMINANT_SPECTRUM = {17: "A", 21: "D65", 23: "D50", 20: "D55", 22: "D75", 3: "A", 24: "A", 2: "FL2",
                        14: "FL2", 12: "FL1", 13: "FL8", 15: "FL3", 16: "FL4", 19: "C", 18: "B", 1: "D55",
                        4: "D55", 9: "D55", 10: "D65", 11: "D75"}
