@@ -103,47 +103,53 @@ def section_estimate():
     return out
 
 
-def _gehler_shi():
-    from scipy.io import loadmat
+def _gehler_shi(charts_dir=None) -> dict:
+    """{camera name: ChartSet} of the Gehler-Shi charts: from the chart CSVs written by
+    benchmarks/gehler_shi_charts.py (`--charts-dir`, read by `g2r_jax.charts.read_charts`), or from
+    the release's .mat files by that script's own loader (black 129 removed from the 5D images)."""
+    from gehler_shi_charts import CAMERAS, charts_for, load_release
 
-    folder = DATA / "illuminants" / "gehler_shi"
-    patches = loadmat(folder / "colourchecker_gamma1_bit12.mat")["real_rgb"].astype(np.float64)
-    illuminants = loadmat(folder / "real_illum_568.mat")["real_rgb"].astype(np.float64)
-    cameras = json.loads((DATA / "cameras" / "gehler_shi_cameras.json").read_text())
-    patches[86:] -= 129.0                                       # 5D black level, not subtracted in the release
-    return patches, illuminants, cameras
+    from g2r_jax.charts import read_charts
+
+    if charts_dir is not None:
+        return {name: read_charts(Path(charts_dir) / f"gehler_shi_{key}.csv") for key, (name, _, _) in CAMERAS.items()}
+    release = load_release(DATA / "illuminants" / "gehler_shi")
+    return {name: charts_for(release, key) for key, (name, _, _) in CAMERAS.items()}
 
 
-def section_gehler():
+def section_gehler(charts_dir=None):
     import jax
 
+    from g2r_jax import colour as _colour
+    from g2r_jax import dng as _dng
     from g2r_jax.dng import DngColourModel
-    from g2r_jax.spectral import accuracy, attach_spectral, tables
+    from g2r_jax.spectral import accuracy
     from g2r_jax.spectral.estimate import estimate_sensitivities
-    from g2r_jax.spectral.upsampling import lattice, trilinear
+    from g2r_jax.spectral.illuminant_spectra import choose_lamp_families
 
-    patches, illuminants, cameras = _gehler_shi()
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    charts = _gehler_shi(charts_dir)
+    cameras = json.loads((DATA / "cameras" / "gehler_shi_cameras.json").read_text())
     srgb = accuracy.colour_checker_srgb()
     reflectances = {"spectral": accuracy.mallett_yuksel_reflectances(srgb),
-                    "jakob2019": accuracy._colour_checker_jakob_hanika()}
+                    "jakob2019": accuracy.jakob_hanika_lattice_reflectances(srgb)}
     out = {}
-    for camera, images in (("Canon EOS-1D", range(0, 86)), ("Canon EOS 5D", range(86, 568))):
+    for camera, chart_set in charts.items():
         entry = cameras[camera]
         matrix = np.asarray(entry["color_matrix_d65"], np.float64).reshape(3, 3) / entry["scale"]
-        white = entry["white_level"] - entry.get("black_level", 0) - 50
+        white = entry["white_level"] - entry.get("black_level", 0) - 50     # below the clipping level
         colour_model = DngColourModel.from_tags([21], [matrix], dtype=np.float64)
         estimate, _ = estimate_sensitivities(colour_model)
-        neutrals = illuminants[list(images)]
-        neutrals = neutrals / neutrals[:, 1:2]
-        from g2r_jax.spectral.illuminant_spectra import choose_lamp_families
-        from g2r_jax import colour as _colour, dng as _dng
+        neutrals = chart_set.illuminant / chart_set.illuminant[:, 1:2]
+        patches_all = chart_set.patches
+        images = range(len(neutrals))
         xy, _ = _dng.camera_neutrals_to_xy(np.asarray(neutrals, np.float32),
                                            DngColourModel.from_tags([21], [matrix]), throw=False)
         cct = np.asarray(jax.jit(_colour.xy_to_CCT)(xy))
         families = choose_lamp_families(neutrals[:, [0, 2]], cct, estimate)
         errors = {"matrix": [], "spectral": [], "jakob2019": []}
         for index, neutral in zip(images, neutrals):
-            recorded = patches[index]
+            recorded = patches_all[index]
             valid = np.all(np.isfinite(recorded), 1) & np.all(recorded < white, 1) & np.all(recorded > 0, 1)
             valid[18:] = False
             if valid.sum() < 6:
@@ -205,6 +211,8 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="756 x 1008 frames for the cost section")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--json", type=Path)
+    parser.add_argument("--charts-dir", type=Path,
+                        help="read the Gehler-Shi chart CSVs written by benchmarks/gehler_shi_charts.py instead of the .mat files")
     args = parser.parse_args(argv)
     if not DATA.exists() and set(args.sections) - {"cost"}:
         print(f"{DATA} is absent: only the cost section can run", file=sys.stderr)
@@ -214,6 +222,8 @@ def main(argv=None) -> int:
         start = time.perf_counter()
         if section == "cost":
             results[section] = section_cost(args.quick, args.repeats)
+        elif section == "gehler":
+            results[section] = section_gehler(args.charts_dir)
         else:
             results[section] = globals()[f"section_{section}"]()
         print(f"[{section}: {time.perf_counter() - start:.0f} s]")
