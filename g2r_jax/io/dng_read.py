@@ -631,8 +631,10 @@ def read_dng_pixels(path, info: Optional[DngInfo] = None) -> np.ndarray:
     problem = getattr(info, "pixel_data_problem", None)
     if problem:
         raise DngError(path, problem)
-    try:
-        with rawpy.imread(str(path)) as raw:
+    from .native_stderr import captured_native_stderr
+
+    try:   # LibRaw may print its own complaints about damaged data: the DngError below says it
+        with captured_native_stderr(lambda line: not line.startswith("g2r-")), rawpy.imread(str(path)) as raw:
             full = raw.raw_image
             colours = raw.raw_colors
             desc = raw.color_desc.decode("ascii", "replace")
