@@ -77,16 +77,17 @@ def make_seeds(folder: Path, profiles=SEED_PROFILES) -> dict:
     seeds = {"dng": [], "image": sorted(images.iterdir()), "profile": []}
     scenes = folder / "scenes"
     scenes.mkdir(exist_ok=True)
-    for k in range(2):
+    for k in range(4):
         Image.fromarray(np.roll(pixels, 7 * k, axis=1)).save(scenes / f"scene{k}.png")
     for name in profiles:
         out = folder / f"dng_{name}"
-        if not (out / "scene1.dng").exists():
+        if not (out / "scene3.dng").exists():
             with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
                 status = convert_main([str(scenes), "--profile", name, "-o", str(out), "--no-progress", "--seed", "1"])
             assert status == 0, f"seed conversion with {name} failed"
         pair = [out / "scene0.dng", out / "scene1.dng"]
         seeds["dng"].append((pair[0], pair))
+        seeds.setdefault("measured", []).append((pair[0], [out / f"scene{k}.dng" for k in range(1, 4)]))
         profile = folder / f"{name}.json"
         shutil.copyfile(ROOT / "profiles" / f"{name}.json", profile)
         seeds["profile"].append(profile)
@@ -450,7 +451,7 @@ def generate_cases(kind: str, n: int, seed: int, seeds: dict):
     fields = {}
     for case in range(n):
         if kind in ("fit", "diagnose"):
-            choices = seeds["dng"] if kind == "fit" else seeds["dng"][:len(seeds["profile"])]
+            choices = seeds["dng"] if kind == "fit" else seeds["measured"]   # the audit needs 3+ good files
             seed_path, partners = rng.choice(choices)
             original = seed_path.read_bytes()
             if seed_path not in fields:

@@ -16,7 +16,6 @@ from g2r_jax.cli.convert import main as convert_main
 from g2r_jax.cli.diagnose import main as diagnose_main
 from g2r_jax.cli.fit_profile import main as fit_main
 from g2r_jax.io.dng_info import DngError
-from g2r_jax.io.dng_read import read_dng_info
 from g2r_jax.io.dng_write import write_dng
 from g2r_jax.io.tag_checks import check_dng_tags
 

@@ -1,7 +1,8 @@
 """What every command shares: one-line messages of our own, no tracebacks unless --debug.
 
 A command's user sees only lines that start with the command's name. Python warnings raised by
-g2r_jax become one `name: warning: ...` line; warnings and log records of libraries (tifffile,
+g2r_jax (UserWarning) become one `name: warning: ...` line; other warnings (numpy's
+RuntimeWarnings included, wherever they are triggered) and log records of libraries (tifffile,
 rawpy, colour-science, JAX and its solvers) are not shown unless `--debug` is given: the reading
 code turns what matters in them into its own messages naming the file (`g2r_jax.io.dng_read`).
 """
@@ -75,7 +76,7 @@ def quiet_libraries(name: str, debug: bool = False):
     root.addHandler(handler)
 
     def show(message, category, filename, lineno, file=None, line=None):
-        if str(filename).startswith(_PACKAGE_DIR):
+        if str(filename).startswith(_PACKAGE_DIR) and issubclass(category, UserWarning):   # numpy's RuntimeWarnings: no
             print(f"{name}: warning: {one_line(message)}", file=sys.stderr)
 
     with warnings.catch_warnings():

@@ -7,7 +7,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from .common import add_debug_flag, one_line, run_command
+from ..io.dng_info import DngError
+from .common import add_debug_flag, error_message, one_line, run_command
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -70,8 +71,16 @@ def _run(args) -> int:
         failed.append(line)
         print(f"g2r-diagnose: error: {one_line(line)}", file=sys.stderr)
 
-    result = diagnose(profile, paths, scenes=args.scenes, seed=args.seed, alpha=args.alpha,
-                      folds=args.folds, progress=say, on_error=report_bad_file, charts=args.charts)
+    try:
+        result = diagnose(profile, paths, scenes=args.scenes, seed=args.seed, alpha=args.alpha,
+                          folds=args.folds, progress=say, on_error=report_bad_file,
+                          charts=args.charts)
+    except DngError:
+        raise
+    except (ValueError, ArithmeticError) as error:   # a folder-wide problem: name the folder
+        where = args.measured or args.charts
+        what = f"these {len(paths)} file(s)" if paths else "these charts"
+        raise DngError(where, f"cannot audit {what}: {error_message(error)}") from error
     if args.extended_profile:
         save_profile(result["profile"], args.extended_profile)
         result["extended_profile"] = str(args.extended_profile)
