@@ -156,3 +156,13 @@ def test_no_colour_science_warning_without_matplotlib():
             "sys.exit(main(['--list-profiles']))")
     done = subprocess.run([sys.executable, "-W", "default", "-c", code], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0 and done.stderr == "", done.stderr[-500:]
+
+
+def test_illuminant_extension_on_a_small_fold_has_no_hull():
+    from g2r_jax.audit.causes.illuminant_distribution import CAUSE
+
+    profile = pm.load_profile("s20fe_night")          # a mixture model with a hull
+    assert bool(profile.illuminants.use_hull)
+    params = {"kind": "gaussian", "weights": [1.0], "means": [[0.6, 0.6]], "covariances": [[[1e-3, 0], [0, 1e-3]]],
+              "hull_points": [[0.6, 0.6], [0.7, 0.5]]}   # two neutrals: fuzzing found the audit stopped here
+    assert not bool(CAUSE.apply(profile, params).illuminants.use_hull)

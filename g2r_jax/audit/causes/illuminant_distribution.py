@@ -90,7 +90,12 @@ class IlluminantDistribution(Cause):
     def apply(self, profile, params):
         points = np.asarray(params["hull_points"], np.float64)
         use_hull = bool(profile.illuminants.use_hull)
-        hull = _illuminants.convex_hull_halfplanes(points) if use_hull else None
+        hull = None
+        if use_hull:
+            try:
+                hull = _illuminants.convex_hull_halfplanes(points)
+            except ValueError:   # fewer than 3 distinct, non-collinear neutrals (a small fold): no hull
+                use_hull = False
         model = _illuminants._model(params["weights"], params["means"], params["covariances"], hull,
                                     params["kind"], use_hull, profile.effects.black_pedestal.dtype)
         return _profile.replace(profile, illuminants=model)
