@@ -166,3 +166,13 @@ def test_illuminant_extension_on_a_small_fold_has_no_hull():
     params = {"kind": "gaussian", "weights": [1.0], "means": [[0.6, 0.6]], "covariances": [[[1e-3, 0], [0, 1e-3]]],
               "hull_points": [[0.6, 0.6], [0.7, 0.5]]}   # two neutrals: fuzzing found the audit stopped here
     assert not bool(CAUSE.apply(profile, params).illuminants.use_hull)
+
+
+@pytest.mark.parametrize("neutrals", [[], [[0.5, 1.0, 0.6]], [[0.5, 1.0, 0.6], [0.6, 1.0, 0.5]]])
+def test_illuminant_extension_fits_a_fold_of_fewer_than_three_files(neutrals):
+    from g2r_jax.audit.causes.illuminant_distribution import CAUSE
+
+    profile = pm.load_profile("s20fe_night")
+    params = CAUSE.fit([{"neutral": np.array(n)} for n in neutrals], [], profile)
+    extended = CAUSE.apply(profile, params)
+    assert np.all(np.isfinite(np.asarray(extended.illuminants.means)))

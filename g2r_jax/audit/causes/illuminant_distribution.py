@@ -73,6 +73,19 @@ class IlluminantDistribution(Cause):
 
     def fit(self, measured, simulated, profile, *, seed=0):
         points = neutral_chromaticities(measured)
+        if len(np.unique(np.round(points, 9), axis=0)) < 3:
+            # too few distinct neutrals in this fold for a mixture (fuzzing found g2r-diagnose stopped
+            # here): one Gaussian, its covariance regularised, or the profile's own model without any
+            model = profile.illuminants
+            if len(points):
+                spread = np.cov(points.T) if len(points) > 1 else np.zeros((2, 2))
+                return {"kind": "gaussian", "weights": [1.0], "means": [points.mean(axis=0).tolist()],
+                        "covariances": [(np.nan_to_num(spread) + 1e-6 * np.eye(2)).tolist()],
+                        "hull_points": points.tolist()}
+            chol = np.asarray(model.cholesky, np.float64)
+            return {"kind": model.kind, "weights": np.asarray(model.weights, np.float64).tolist(),
+                    "means": np.asarray(model.means, np.float64).tolist(),
+                    "covariances": (chol @ np.swapaxes(chol, -1, -2)).tolist(), "hull_points": []}
         model = _illuminants.fit_mixture(points, seed=seed)
         chol = np.asarray(model.cholesky, np.float64)
         weights = np.asarray(model.weights, np.float64)
@@ -94,7 +107,7 @@ class IlluminantDistribution(Cause):
         if use_hull:
             try:
                 hull = _illuminants.convex_hull_halfplanes(points)
-            except ValueError:   # fewer than 3 distinct, non-collinear neutrals (a small fold): no hull
+            except (ValueError, IndexError):   # fewer than 3 distinct, non-collinear neutrals (a small fold): no hull
                 use_hull = False
         model = _illuminants._model(params["weights"], params["means"], params["covariances"], hull,
                                     params["kind"], use_hull, profile.effects.black_pedestal.dtype)
