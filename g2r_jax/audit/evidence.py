@@ -15,8 +15,6 @@ The noise level function per CFA position comes from `g2r_jax.noise_estimation` 
 
 from __future__ import annotations
 
-import types
-
 import numpy as np
 
 TILE = 64
@@ -54,77 +52,14 @@ def nlf_edges(n_bins: int = N_BINS) -> np.ndarray:
     return np.concatenate([[-np.inf], np.geomspace(2.0**-11, 1.0, n_bins)])
 
 
-_LAPLACIAN = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])   # sum of squares 36
-
-
-def _block_sigma2(tiles: np.ndarray, block: int) -> np.ndarray:
-    """Per block (N, block*block) the robust noise variance: the squared MAD (x 1.4826) of the
-    block's 3x3 Laplacian-type responses (which cancel any plane a + b y + c x) over 36, after
-    Immerkaer, "Fast noise variance estimation", CVIU 1996, with the MAD instead of the mean
-    absolute value so that an edge crossing the block moves it little."""
-    b = tiles.reshape(-1, block, block)
-    response = sum(_LAPLACIAN[i, j] * b[:, i:block - 2 + i, j:block - 2 + j] for i in range(3) for j in range(3))
-    response = response.reshape(len(b), -1)
-    mad = np.median(np.abs(response - np.median(response, axis=1, keepdims=True)), axis=1)
-    return (1.482602 * mad) ** 2 / 36.0
-
-
-_CALIBRATION: dict = {}
-
-
-def _median_bias(block: int) -> float:
-    """E-ratio of the median over blocks of `_block_sigma2` to the true variance, for white
-    Gaussian noise (Monte Carlo with a fixed seed, once per block size)."""
-    if block not in _CALIBRATION:
-        noise = np.random.default_rng(12345).normal(0.0, 1.0, (50_000, block * block))
-        _CALIBRATION[block] = float(np.median(_block_sigma2(noise, block)))
-    return _CALIBRATION[block]
-
-
-def _block_nlf(planes, *, clip, clip_low, edges, block: int = 8, n_bootstrap: int = 200, seed: int = 0,
-               min_blocks: int = 30):
-    """Fallback noise level function (fields as `noise_estimation.NoiseLevelEstimate`): blocks of
-    block x block plane pixels binned by their mean; per bin the median of the blocks' robust
-    variances (`_block_sigma2`; texture and edges reach only some blocks, the median ignores
-    them) divided by its value for white Gaussian noise; 95 % interval by bootstrapping blocks.
-    The local smooth-region approach of Foi et al., IEEE TIP 2008; white noise only."""
-    rng = np.random.default_rng(seed)
-    bias = _median_bias(block)
-    nb = len(edges) - 1
-    shape = (planes.shape[0], nb)
-    out = {k: np.full(shape, np.nan) for k in ("signal", "variance", "lower", "upper")}
-    out["counts"] = np.zeros(shape, int)
-    for p, plane in enumerate(planes):
-        h, w = plane.shape[0] - plane.shape[0] % block, plane.shape[1] - plane.shape[1] % block
-        tiles = plane[:h, :w].astype(np.float64).reshape(h // block, block, w // block, block)
-        tiles = tiles.transpose(0, 2, 1, 3).reshape(-1, block**2)
-        tiles = tiles[(tiles.max(1) < clip[p]) & (tiles.min(1) > clip_low[p])]
-        if not len(tiles):
-            continue
-        mean = tiles.mean(1)
-        sigma2 = _block_sigma2(tiles, block)
-        for b in range(nb):
-            sel = (mean >= edges[b]) & (mean < edges[b + 1])
-            if sel.sum() < min_blocks:
-                continue
-            v = sigma2[sel]
-            boot = np.median(v[rng.integers(0, v.size, (n_bootstrap, v.size))], axis=1) / bias
-            out["signal"][p, b], out["variance"][p, b] = mean[sel].mean(), np.median(v) / bias
-            out["lower"][p, b], out["upper"][p, b] = np.percentile(boot, [2.5, 97.5])
-            out["counts"][p, b] = v.size
-    return types.SimpleNamespace(edges=edges, confidence=0.95, **out)
-
-
 def noise_level_function(planes, *, clip, clip_low, edges=None, seed: int = 0, min_blocks: int = 30):
     """Measured NLF of (4, h, w) planes with 95 % intervals: an object with (4, B) `signal`,
-    `variance`, `lower`, `upper`, `counts` (see `noise_estimation.NoiseLevelEstimate`)."""
+    `variance`, `lower`, `upper`, `counts`: a `noise_estimation.NoiseLevelEstimate`."""
     edges = nlf_edges() if edges is None else edges
     clip = np.broadcast_to(np.asarray(clip, np.float64), (4,))
     clip_low = np.broadcast_to(np.asarray(clip_low, np.float64), (4,))
-    try:
-        from .. import noise_estimation
-    except ImportError:
-        return _block_nlf(planes, clip=clip, clip_low=clip_low, edges=edges, seed=seed, min_blocks=min_blocks)
+    from .. import noise_estimation
+
     return noise_estimation.estimate_noise_level_function(planes, clip=clip, clip_low=clip_low, edges=edges,
                                                          seed=seed, min_blocks=min_blocks)
 

@@ -13,15 +13,20 @@ p Bonferroni over those bins. Significant when p is below the threshold and some
 more than `tolerance` in log variance beyond two standard errors. One file is enough: its
 thousands of blocks give the intervals.
 
-Extension: scale factors of `NoiseModel.shot` and `NoiseModel.read` per position, fitted by
-weighted least squares on the bins of half A of the fit files. Held-out: the RMS of L on half B
-of held-out files (or of the one file) before and after.
+Extension (large files): a noise level function per CFA position (`NoiseModel.level_knots`,
+`level_variance`), fitted on half A of the tiles by `noise_extension.fit_noise_extension`;
+held-out: the RMS of L on half B of held-out files (or of the one file) before and after,
+closed form. Small files (fewer than LARGE_BLOCKS blocks a plane): the neighbour-pair NLF
+(`stats.noise_level_function`) tested over files against simulated files, extension: scale
+factors of `NoiseModel.shot` and `read` per position, validated by re-simulation.
 """
 
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
+import jax.numpy as jnp
 import numpy as np
 from scipy import stats as _scipy_stats
 
@@ -42,8 +47,11 @@ def noise_prediction(profile, iso: float, level):
 
 
 def model_variance(profile, f, signal) -> np.ndarray:
-    """Variance the profile predicts for file `f` at `signal` (4, B): noise model + rounding."""
-    return noise_prediction(profile, f["iso"], signal)[0] + f["quantisation"][:, None]
+    """Variance the profile predicts for file `f` at `signal` (4, B): its noise model (with the
+    level-function extension where it has one, `noise_extension.predicted_variance`) + rounding."""
+    from ...noise_extension import predicted_variance
+
+    return predicted_variance(profile.noise, f["iso"], np.asarray(signal, np.float64)) + f["quantisation"][:, None]
 
 
 def log_ratio(profile, f, half: str):
@@ -185,6 +193,21 @@ def fit_scales(files, profile, half: str = "A", bias=None):
     return shot_scale, read_scale
 
 
+def fit_level_function(files, profile) -> dict:
+    """The noise level function per CFA position fitted to half A of the largest file's tiles
+    (`noise_extension.fit_noise_extension`: piecewise linear in the signal, free in shape, since
+    lossy raw compression makes real level functions fall in places), as JSON-ready params; the
+    profile's other ISO rows get the same shape scaled by their shot x + read."""
+    from ...noise_extension import fit_noise_extension
+
+    f = max(files, key=lambda f: f["blocks"])
+    extended = fit_noise_extension(f["nlf"]["A"], profile, iso=f["iso"]).noise
+    out = {"kind": "level_function", "fitted_on": Path(f.get("name") or "file").name, "at_iso": f["iso"]}
+    for k in ("iso", "shot", "read", "level_knots", "level_variance"):
+        out[k] = np.asarray(getattr(extended, k), np.float64).tolist()
+    return out
+
+
 class NoiseModel(Cause):
     name = "noise_model"
     statistic = ("noise level function per CFA position (variance of flat 8x8 blocks, per signal bin, "
@@ -248,7 +271,7 @@ class NoiseModel(Cause):
     def fit(self, measured, simulated, profile, *, seed=0):
         large = _large(measured)
         if large:
-            shot, read = fit_scales(large, profile, "A")
+            return fit_level_function(large, profile)
         else:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
@@ -256,6 +279,12 @@ class NoiseModel(Cause):
         return {"shot_scale": shot.tolist(), "read_scale": read.tolist()}
 
     def apply(self, profile, params):
+        if params.get("kind") == "level_function":
+            dtype = profile.noise.shot.dtype
+            fields = {k: jnp.asarray(params[k], dtype) for k in ("iso", "shot", "read", "level_knots", "level_variance")}
+            noise = type(profile.noise)(iso_range=profile.noise.iso_range,
+                                        correlation_kernel=profile.noise.correlation_kernel, **fields)
+            return _profile.replace(profile, noise=noise)
         shot = profile.noise.shot * as_profile_dtype(profile, params["shot_scale"])[None]
         read = profile.noise.read * as_profile_dtype(profile, params["read_scale"])[None]
         return _profile.replace(profile, noise=_profile.replace(profile.noise, shot=shot, read=read))
