@@ -11,7 +11,9 @@ profile name (`s20fe_night`: 10-bit, dark night exposures, ISO 100-3200; `gopro_
 Default: demo and s20fe_night.
 
     /work/venv/bin/python benchmarks/audit_detection.py [--profile demo,s20fe_night] [--seeds 5]
-        [--workers 2] [--files 24] [--height 120 --width 180]
+        [--workers 2] [--files 24] [--height 120 --width 180] [--sizes 120x180,200x300]
+
+Single files: `--files 1 --height 1000 --width 1500`; mixed sizes: `--sizes 120x180,200x300`.
 
 The default size (120x180) keeps the default run (2 profiles x (9 causes + clean) x 5 seeds)
 near ten minutes on 2 cores; --height 200 --width 300 (the issue's size) takes about 2x longer.
@@ -46,7 +48,8 @@ def load_base(name: str):
 
 
 def one_run(job):
-    profile_name, cause, seed, n_files, height, width = job
+    profile_name, cause, seed, n_files, height, width = job[:6]
+    sizes = job[6] if len(job) > 6 and job[6] else [(height, width)]
     from g2r_jax.audit import diagnose, scenes, simulate, synthetic
 
     base = load_base(profile_name)
@@ -56,7 +59,11 @@ def one_run(job):
     if cause:
         magnitude = synthetic.random_magnitude(cause, rng)
         truth = synthetic.inject(base, cause, height=height, width=width, **magnitude)
-    measured = simulate.simulate(truth, scenes.scene_set(n_files, 10_000 + seed, height, width), 50_000 + seed)
+    measured = []
+    for k, (h, w) in enumerate(sizes):   # files cycle through the sizes (mixed sizes in one audit)
+        count = len(range(k, n_files, len(sizes)))
+        if count:
+            measured += simulate.simulate(truth, scenes.scene_set(count, 10_000 + seed + 97 * k, h, w), 50_000 + seed + 97 * k)
     started = time.perf_counter()
     report = diagnose(base, measured, seed=seed)
     elapsed = time.perf_counter() - started
@@ -82,6 +89,8 @@ def main(argv=None):
     parser.add_argument("--height", type=int, default=120)
     parser.add_argument("--width", type=int, default=180)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--sizes", default="", help="comma-separated HxW sizes the files cycle through "
+                                                     "(mixed sizes; overrides --height/--width), e.g. 120x180,200x300")
     parser.add_argument("--causes", default="all", help="comma-separated causes, or 'all'")
     parser.add_argument("--clean-seeds", type=int, default=None, help="clean sets per profile (default: seeds)")
     args = parser.parse_args(argv)
@@ -90,11 +99,12 @@ def main(argv=None):
     profiles = args.profile.split(",")
     causes = list(CAUSES) if args.causes == "all" else args.causes.split(",")
     clean = args.clean_seeds if args.clean_seeds is not None else args.seeds
+    sizes = [tuple(int(v) for v in size.split("x")) for size in args.sizes.split(",") if size]
     jobs = []
     for name in profiles:
-        jobs += [(name, c, s, args.files, args.height, args.width) for c in causes for s in range(args.seeds)]
-        jobs += [(name, None, 1000 + s, args.files, args.height, args.width) for s in range(clean)]
-    print(f"{len(jobs)} audits of {args.files} files of {args.height}x{args.width} on {profiles}, "
+        jobs += [(name, c, s, args.files, args.height, args.width, sizes) for c in causes for s in range(args.seeds)]
+        jobs += [(name, None, 1000 + s, args.files, args.height, args.width, sizes) for s in range(clean)]
+    print(f"{len(jobs)} audits of {args.files} files of {args.sizes or f'{args.height}x{args.width}'} on {profiles}, "
           f"{args.workers} worker(s)", flush=True)
     started = time.perf_counter()
     results = []
