@@ -100,6 +100,9 @@ def _same_matrices(infos) -> bool:
                np.allclose(np.asarray(m.color_matrix), first, atol=1e-6) for m in models)
 
 
+PAIR_REGULARISATION = 1e-3   # weight of the pull towards the reference file's matrices
+
+
 def fit_color_matrix_pair(infos, dtype=np.float32) -> _dng.DngColourModel:
     """One set of ColorMatrices (one per calibration illuminant) explaining files whose matrices differ.
 
@@ -120,12 +123,18 @@ def fit_color_matrix_pair(infos, dtype=np.float32) -> _dng.DngColourModel:
         targets, weights = jnp.asarray(np.stack(targets)), jnp.asarray(np.stack(weights))
         reference = colour_model_from_info(infos[0], np.float64)
 
+        start = reference.color_matrix
+
         def residuals(matrices, _):
             predicted = jnp.einsum("fk,kij->fij", weights, matrices)
-            return (predicted - targets).reshape(-1)
+            # Tikhonov term towards the reference file's matrices: files shot at nearly one white
+            # leave the matrices' difference undetermined, and the solver must not wander along it
+            # (fuzzing found a fitted matrix with a negative response to white this way).
+            return jnp.concatenate([(predicted - targets).reshape(-1),
+                                    PAIR_REGULARISATION * (matrices - start).reshape(-1)])
 
         solver = optx.LevenbergMarquardt(rtol=1e-10, atol=1e-12)
-        solution = optx.least_squares(residuals, solver, reference.color_matrix, max_steps=200)
+        solution = optx.least_squares(residuals, solver, start, max_steps=200)
         fitted = np.asarray(solution.value)
     tags = reference.dng_tags()   # the reference file's sets, in the model's order
     n = len(tags["calibration_illuminants"])

@@ -499,7 +499,7 @@ def campaign(kind: str, n: int, seed: int = 0, *, seeds_dir: Path | None = None,
                 finding = {"case": spec["case"], "kind": kind, "input": spec["label"], "problems": problems}
                 findings.append(finding)
                 log(f"finding {len(findings)} in case {spec['case']}: {spec['label']}: {problems[0][:300]}")
-                if save_findings:
+                if save_findings and kind != "diagnose":
                     save_reproducer(spec)
             shutil.rmtree(work, ignore_errors=True)
             if (spec["case"] + 1) % 100 == 0:

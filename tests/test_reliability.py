@@ -176,3 +176,20 @@ def test_illuminant_extension_fits_a_fold_of_fewer_than_three_files(neutrals):
     params = CAUSE.fit([{"neutral": np.array(n)} for n in neutrals], [], profile)
     extended = CAUSE.apply(profile, params)
     assert np.all(np.isfinite(np.asarray(extended.illuminants.means)))
+
+
+@pytest.mark.data
+def test_two_files_at_one_white_with_slightly_different_matrices_fit_a_valid_profile(shared_data, tmp_path):
+    """Fuzzing reproducer (the GoPro file with one ColorMatrix2 entry changed by -0.0033): the
+    matrix-pair fit gave a matrix with a negative response to white and the batch was lost."""
+    import dataclasses
+
+    from g2r_jax.cli.fit_profile import validate_profile
+    from g2r_jax.fit import fit_profile
+    from g2r_jax.io.dng_read import read_dng_info
+
+    good = read_dng_info(shared_data / "dng" / "gopro_hero6_GOPR0024.dng")
+    changed = [np.array(m, copy=True) for m in good.color_matrices]
+    changed[1][0, 2] -= 0.0033
+    other = dataclasses.replace(good, path=str(tmp_path / "mutated.dng"), color_matrices=tuple(changed))
+    validate_profile(fit_profile([good, other]), tmp_path / "p.json")
