@@ -75,11 +75,13 @@ class ColourMatrix(Cause):
         errors = colour_fit.colour_model_errors(profile.colour, measured)
         summary = colour_fit.summarise(errors)
         worst = int(np.nanargmax(summary["patch_median"]))
+        rendered = float(np.nanmean(colour_fit.rendered_delta_E(profile.colour, measured)))
         magnitude = float(np.nanmax(np.abs(result["difference"]))) if np.any(np.isfinite(result["difference"])) else 0.0
         evidence = (f"{len(measured)} chart images: chromatic angular error mean {summary['chromatic_mean']:.2f} / "
                     f"median {summary['chromatic_median']:.2f} / p95 {summary['chromatic_p95']:.2f} deg, neutral "
                     f"{summary['neutral_mean']:.2f} deg; worst patch {worst + 1} ({_charts.PATCH_NAMES[worst]}) "
-                    f"median {summary['patch_median'][worst]:.1f} deg; max |mean log-chroma residual| "
+                    f"median {summary['patch_median'][worst]:.1f} deg; rendered (DNG white balance) mean "
+                    f"CIEDE2000 {rendered:.2f}; max |mean log-chroma residual| "
                     f"{magnitude:.4f}, max |t| = {result['score']:.2f}, sign-flip p = {result['p']:.4g}")
         return {"cause": self.name, "score": result["score"], "p": result["p"], "magnitude": magnitude,
                 "statistic": self.statistic, "evidence": evidence,
@@ -127,7 +129,8 @@ class ColourMatrix(Cause):
                 "heldout": True, "folds": int(len(np.unique(fold_index))),
                 "fold_before": result["fold_before"], "fold_after": result["fold_after"],
                 "after_median": after["chromatic_median"], "after_p95": after["chromatic_p95"],
-                "after_neutral_mean": after["neutral_mean"]}
+                "after_neutral_mean": after["neutral_mean"],
+                "patch_median_before": before["patch_median"], "patch_median_after": after["patch_median"]}
 
 
 CAUSE = ColourMatrix()
