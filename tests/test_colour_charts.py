@@ -224,3 +224,26 @@ def test_real_canon_5d_charts(shared_data, tmp_path):
     top = report["findings"][0]
     assert top["cause"] == "colour_matrix" and top["significant"] and top["kept"]
     assert 4.0 < top["gain"]["before"] < 5.0 and top["gain"]["after"] <= 2.7, top["gain"]
+
+
+def test_audit_with_dngs_and_charts():
+    """Both kinds of evidence in one run: colour first from the charts, the sensor causes from
+    the files, tested against the colour-extended profile; the extended profile keeps both."""
+    from audit_helpers import measured_set
+
+    from g2r_jax.audit import causes, synthetic
+
+    base = synthetic.demo_profile()
+    error = np.eye(3) + 0.12 * np.random.default_rng(8).normal(size=(3, 3))
+    truth = replace(base, colour=DngColourModel.from_tags(
+        (17, 21), [error @ np.asarray(m, np.float64) for m in base.colour.color_matrix]))
+    files = measured_set(synthetic.inject(base, "black_level", offset=0.02), 3, n=10, height=60, width=90)
+    registry = (causes.get("black_level"), causes.get("colour_matrix"))
+    report = diagnose(base, files, charts=synthetic_charts(truth, 30, seed=9), seed=0, n_simulated=10,
+                      causes=registry, n_permutations=300)
+    found = {f["cause"]: f for f in report["findings"] if f["significant"]}
+    assert {"black_level", "colour_matrix"} <= set(found), [(f["cause"], f["evidence"]) for f in report["findings"]]
+    assert found["colour_matrix"]["kept"] and report["tests"] == 2 and report["n_charts"] == 30
+    extended = report["profile"]
+    assert float(np.max(extended.effects.black_pedestal)) > 0
+    assert not np.allclose(np.asarray(extended.colour.color_matrix), np.asarray(base.colour.color_matrix))

@@ -175,8 +175,8 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
                                 "evidence": top["evidence"] + "; the candidate's extension does not help on held-out files"})
             done.append(dict(top, cause=UNEXPLAINED, candidate=cause.name, source=cause.name))
     # a statistic without an extension is a finding only when significant (as `unexplained`)
-    by_name.update({c.name: c for c in chart_causes})
-    findings = [f for f in done if f["cause"] == UNEXPLAINED or by_name[f["cause"]].extensible]
+    known = dict(by_name, **{c.name: c for c in chart_causes})   # plots below: file causes only
+    findings = [f for f in done if f["cause"] == UNEXPLAINED or known[f["cause"]].extensible]
     findings.sort(key=rank)
     for f in findings:   # the plot that makes the case, for the HTML report
         cause = by_name.get(f.get("source", f["cause"]))
