@@ -104,22 +104,7 @@ def xy_to_CCT(xy):
     temperature interpolated by the perpendicular distances. Matches
     `colour.temperature.uv_to_CCT_Robertson1968` including its out-of-table behaviour.
     """
-    uv = XYZ_to_uv(xy_to_XYZ(xy))
-    table = jnp.asarray(_ROBERTSON, dtype=uv.dtype)
-    mired, u_line, v_line, slope = table[:, 0], table[:, 1], table[:, 2], table[:, 3]
-    length = jnp.sqrt(1.0 + slope**2)
-    du, dv = 1.0 / length, slope / length
-    u = uv[..., 0:1]
-    v = uv[..., 1:2]
-    distance = -(u - u_line[1:]) * dv[1:] + (v - v_line[1:]) * du[1:]
-    crossed = distance <= 0
-    n_lines = table.shape[0] - 1
-    index = jnp.where(jnp.any(crossed, axis=-1), jnp.argmax(crossed, axis=-1) + 1, n_lines)
-    d_current = -jnp.minimum(jnp.take_along_axis(distance, (index - 1)[..., None], -1)[..., 0], 0.0)
-    d_previous = jnp.take_along_axis(distance, jnp.maximum(index - 2, 0)[..., None], -1)[..., 0]
-    fraction = jnp.where(index == 1, 0.0, d_current / (d_previous + d_current))
-    interpolated_mired = mired[index - 1] * fraction + mired[index] * (1 - fraction)
-    return 1e6 / interpolated_mired
+    return xy_to_CCT_tint(xy)[0]
 
 
 def xy_to_CCT_tint(xy):

@@ -79,3 +79,28 @@ def mean_delta_E_2000(XYZ_rendered, XYZ_input):
     lab_rendered = colour.XYZ_to_Lab(XYZ_rendered * scale, D65)
     lab_input = colour.XYZ_to_Lab(XYZ_input, D65)
     return float(np.mean(colour.delta_E(lab_rendered, lab_input, method="CIE 2000"))), scale
+
+
+PATCH, MARGIN = 16, 3
+
+
+def patch_scene(tmp_path):
+    """24 flat ColorChecker patches, 16x16 pixels each, as an 8-bit sRGB PNG in tmp_path/in.
+
+    **Returns:** (folder, 8-bit codes (24, 3), boxes (top, left, bottom, right) inside each patch).
+    """
+    from PIL import Image
+
+    from g2r_jax.examples import colour_checker_srgb
+
+    codes = np.round(colour_checker_srgb() * 255).astype(np.uint8)
+    image = np.zeros((4 * PATCH, 6 * PATCH, 3), np.uint8)
+    boxes = []
+    for index, code in enumerate(codes):
+        row, col = divmod(index, 6)
+        image[row * PATCH:(row + 1) * PATCH, col * PATCH:(col + 1) * PATCH] = code
+        boxes.append((row * PATCH + MARGIN, col * PATCH + MARGIN, (row + 1) * PATCH - MARGIN, (col + 1) * PATCH - MARGIN))
+    folder = tmp_path / "in"
+    folder.mkdir(exist_ok=True)
+    Image.fromarray(image).save(folder / "patches.png")
+    return folder, codes, boxes

@@ -12,25 +12,22 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from PIL import Image
 
 pytest.importorskip("colour_hdri")
 pytest.importorskip("rawpy")
 import conformance_colour as cc  # noqa: E402
-from dng_reference import mean_delta_E_2000, patch_camera_rgb, render_patches_to_XYZ_D65  # noqa: E402
+from dng_reference import mean_delta_E_2000, patch_camera_rgb, patch_scene, render_patches_to_XYZ_D65  # noqa: E402
 
 from g2r_jax import colour as gc  # noqa: E402
 from g2r_jax import dng  # noqa: E402
 from g2r_jax._x64 import enable_x64  # noqa: E402
 from g2r_jax.cli.convert import main as convert_main  # noqa: E402
-from g2r_jax.examples import colour_checker_srgb  # noqa: E402
 from g2r_jax.fit import fit_profile  # noqa: E402
 from g2r_jax.io.dng_info import DngError  # noqa: E402
 from g2r_jax.io.dng_read import read_dng_info, require_colour_tags  # noqa: E402
 from g2r_jax.io.illuminant_data import parse_illuminant_data  # noqa: E402
 from g2r_jax.profile import load_profile, profile_to_dict, save_profile  # noqa: E402
 
-PATCH, MARGIN = 16, 3
 A_FIRST = dict(codes=(17, 21), color_matrices=(cc.CM_A, cc.CM_D65), camera_calibrations=(cc.CC_A, cc.CC_D65),
                forward_matrices=(cc.FM_A, cc.FM_D65))
 D65_FIRST = dict(codes=(21, 17), color_matrices=(cc.CM_D65, cc.CM_A), camera_calibrations=(cc.CC_D65, cc.CC_A),
@@ -50,22 +47,8 @@ def _profile(tmp_path, name, layout):
     return profile_path
 
 
-def _patch_scene(tmp_path):
-    codes = np.round(colour_checker_srgb() * 255).astype(np.uint8)
-    image = np.zeros((4 * PATCH, 6 * PATCH, 3), np.uint8)
-    boxes = []
-    for index, code in enumerate(codes):
-        row, col = divmod(index, 6)
-        image[row * PATCH:(row + 1) * PATCH, col * PATCH:(col + 1) * PATCH] = code
-        boxes.append((row * PATCH + MARGIN, col * PATCH + MARGIN, (row + 1) * PATCH - MARGIN, (col + 1) * PATCH - MARGIN))
-    folder = tmp_path / "in"
-    folder.mkdir(exist_ok=True)
-    Image.fromarray(image).save(folder / "patches.png")
-    return folder, codes, boxes
-
-
 def _convert(tmp_path, profile_path, neutral, tag):
-    folder, codes, boxes = _patch_scene(tmp_path)
+    folder, codes, boxes = patch_scene(tmp_path)
     csv = tmp_path / f"ill_{tag}.csv"
     csv.write_text(f"r_over_g,g,b_over_g\n{neutral[0]:.9f},1,{neutral[2]:.9f}\n")
     out = tmp_path / f"out_{tag}"

@@ -7,36 +7,17 @@ import colour
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from PIL import Image
 
 pytest.importorskip("colour_hdri")
-from dng_reference import mean_delta_E_2000, patch_camera_rgb, render_patches_to_XYZ_D65  # noqa: E402
+from dng_reference import mean_delta_E_2000, patch_camera_rgb, patch_scene, render_patches_to_XYZ_D65  # noqa: E402
 
 from g2r_jax import colour as gc  # noqa: E402
 from g2r_jax import dng  # noqa: E402
 from g2r_jax._x64 import enable_x64  # noqa: E402
 from g2r_jax.cli.convert import main as convert_main  # noqa: E402
-from g2r_jax.examples import colour_checker_srgb  # noqa: E402
 from g2r_jax.io.dng_read import read_dng_info  # noqa: E402
 from g2r_jax.profile import load_profile, save_profile  # noqa: E402
 
-PATCH = 16
-MARGIN = 3
-
-
-def patch_scene(tmp_path):
-    """24 flat ColorChecker patches, 16x16 pixels each, as an 8-bit sRGB PNG."""
-    codes = np.round(colour_checker_srgb() * 255).astype(np.uint8)
-    image = np.zeros((4 * PATCH, 6 * PATCH, 3), np.uint8)
-    boxes = []
-    for index, code in enumerate(codes):
-        row, col = divmod(index, 6)
-        image[row * PATCH:(row + 1) * PATCH, col * PATCH:(col + 1) * PATCH] = code
-        boxes.append((row * PATCH + MARGIN, col * PATCH + MARGIN, (row + 1) * PATCH - MARGIN, (col + 1) * PATCH - MARGIN))
-    folder = tmp_path / "in"
-    folder.mkdir()
-    Image.fromarray(image).save(folder / "patches.png")
-    return folder, codes, boxes
 
 
 def neutral_for_cct(profile, cct):
