@@ -26,8 +26,9 @@ def significant(report):
     return [f for f in report["findings"] if f["significant"]]
 
 
-def assert_parameter_close(cause, params, magnitude, truth_profile):
-    """The fitted parameter of `cause` is close to the injected one."""
+def assert_parameter_close(cause, params, magnitude, truth_profile, shading_tolerance=0.06):
+    """The fitted parameter of `cause` is close to the injected one. `shading_tolerance` bounds the
+    corner gains' error; 0.06 suits 200x300 files, smaller files need more (test_audit_profiles)."""
     if cause == "black_level":
         assert abs(params["offset_fraction"] - magnitude["offset"]) < 0.15 * magnitude["offset"] + 5e-4
     elif cause == "white_level":
@@ -36,7 +37,7 @@ def assert_parameter_close(cause, params, magnitude, truth_profile):
         assert abs(params["green2_over_green1"] - magnitude["ratio"]) < 0.2 * abs(magnitude["ratio"] - 1)
     elif cause == "lens_shading":
         truth = 1 + np.asarray(truth_profile.effects.shading).sum(1)
-        assert np.all(np.abs(np.asarray(params["corner_gain"]) - truth) < 0.06), (params["corner_gain"], truth)
+        assert np.all(np.abs(np.asarray(params["corner_gain"]) - truth) < shading_tolerance), (params["corner_gain"], truth)
     elif cause == "noise_model":
         assert np.all(np.abs(np.asarray(params["shot_scale"]) / magnitude["scale"] - 1) < 0.2)
         assert np.all(np.abs(np.asarray(params["read_scale"]) / magnitude["scale"] - 1) < 0.35)
