@@ -36,6 +36,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 FULL = (3024, 4032)
 QUICK = (756, 1008)
+MIXED_BASE = (1512, 2016)          # the mixed-size section's largest frame (3 MP)
 BYTES_PER_PIXEL = 3 + 2            # uint8 RGB read, uint16 mosaic written
 
 
@@ -271,8 +272,117 @@ def section_convert(args) -> dict:
             "peak_rss_children_MiB": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0}
 
 
+def _cpu_and_wall(function, repeats: int):
+    """(best wall seconds, mean process CPU seconds) over `repeats` calls: CPU time is what
+    compares on a shared machine (wall time there includes waiting for the other jobs)."""
+    wall, cpu = [], []
+    for _ in range(repeats):
+        w, c = time.perf_counter(), time.process_time()
+        function()
+        wall.append(time.perf_counter() - w)
+        cpu.append(time.process_time() - c)
+    return min(wall), float(np.mean(cpu))
+
+
+def section_noise(args) -> dict:
+    """Noise on vs off and uint8 vs float32 input, one profile and option set, side by side:
+    `unprocess_batch` under jit (what g2r-convert runs), inputs already on the device."""
+    import jax
+    import jax.numpy as jnp
+
+    from g2r_jax.profile import load_profile
+    from g2r_jax.unprocess import unprocess_batch
+
+    height, width = args.size
+    profile = load_profile(args.profile)
+    codes = np.stack([test_image(height, width, seed) for seed in range(args.batch)])
+    inputs = {"uint8": jnp.asarray(codes), "float32": jnp.asarray(codes.astype(np.float32) / np.float32(255))}
+    keys = jax.random.split(jax.random.PRNGKey(0), args.batch)
+    results = {"batch": args.batch, "profile": args.profile, "device": str(jax.devices()[0].device_kind)}
+    for _ in range(2):          # two passes, interleaved: the best of each is kept
+        for dtype, images in inputs.items():
+            for noise in (False, True):
+                function = jax.jit(lambda k, im, noise=noise: unprocess_batch(k, im, profile, noise=noise)[0])
+                function(keys, images).block_until_ready()
+                wall, cpu = _cpu_and_wall(lambda: function(keys, images).block_until_ready(), args.repeats)
+                name = f"{dtype}_noise_{'on' if noise else 'off'}"
+                old = results.get(name, {"wall_ms_per_frame": np.inf, "cpu_ms_per_frame": np.inf})
+                results[name] = {"wall_ms_per_frame": min(old["wall_ms_per_frame"], 1e3 * wall / args.batch),
+                                 "cpu_ms_per_frame": min(old["cpu_ms_per_frame"], 1e3 * cpu / args.batch)}
+    return results
+
+
+def _write_pngs(folder: Path, sizes, seed0: int):
+    from PIL import Image
+
+    folder.mkdir(parents=True, exist_ok=True)
+    for path in folder.glob("*"):
+        path.unlink()
+    for index, (height, width) in enumerate(sizes):
+        Image.fromarray(test_image(height, width, seed0 + index)).save(folder / f"frame_{index:03d}.png", compress_level=1)
+
+
+def _timed(command, env=None):
+    start = time.perf_counter()
+    completed = subprocess.run(command, capture_output=True, text=True, env=env)
+    if completed.returncode != 0:
+        raise RuntimeError(f"{command[0]} failed:\n{completed.stdout}\n{completed.stderr}")
+    return time.perf_counter() - start
+
+
+def section_startup(args) -> dict:
+    """g2r-convert on 8 PNGs with a cold and a warm persistent compilation cache, and without the
+    cache, against published_numpy.py on the same PNGs; `--help` time."""
+    import shutil
+
+    height, width = args.size
+    work = Path(args.workdir)
+    folder = work / "pngs8"
+    _write_pngs(folder, [(height, width)] * 8, 200)
+    bin_dir = Path(sys.executable).parent
+    cache = work / "jax_cache"
+    shutil.rmtree(cache, ignore_errors=True)
+    env = dict(os.environ, G2R_JAX_CACHE_DIR=str(cache))
+    g2r = lambda *extra: [str(bin_dir / "g2r-convert"), str(folder), "--profile", args.profile, "-o",
+                          str(work / "g2r8"), "--no-progress", *extra]
+    cold = _timed(g2r(), env)
+    warm = min(_timed(g2r(), env) for _ in range(2))
+    uncached = _timed(g2r("--no-compile-cache"), env)
+    numpy_seconds = _timed([sys.executable, str(HERE / "published_numpy.py"), str(folder), str(work / "numpy8"),
+                            "--profile", args.profile])
+    help_seconds = min(_timed([str(bin_dir / "g2r-convert"), "--help"]) for _ in range(3))
+    return {"frames": 8, "cold_cache_seconds": cold, "warm_cache_seconds": warm, "no_cache_seconds": uncached,
+            "published_numpy_seconds": numpy_seconds, "help_seconds": help_seconds,
+            "speedup_warm": numpy_seconds / warm, "speedup_cold": numpy_seconds / cold}
+
+
+def section_mixed(args) -> dict:
+    """g2r-convert on 11 PNGs of 11 different sizes against 12 PNGs of one size (no persistent
+    cache: every shape's compilation is paid, as on a first run)."""
+    height, width = MIXED_BASE
+    work = Path(args.workdir)
+    uniform, mixed = work / "uniform12", work / "mixed11"
+    _write_pngs(uniform, [(height, width)] * 12, 300)
+    sizes = [(height - 2 * (37 * i % 200), width - 2 * (53 * i % 300)) for i in range(11)]
+    _write_pngs(mixed, sizes, 400)
+    bin_dir = Path(sys.executable).parent
+    g2r = lambda source: [str(bin_dir / "g2r-convert"), str(source), "--profile", args.profile, "-o",
+                          str(work / f"out_{source.name}"), "--no-progress", "--no-compile-cache"]
+    return {"size": [height, width], "mixed_sizes": sizes, "uniform12_seconds": min(_timed(g2r(uniform)) for _ in range(2)),
+            "mixed11_seconds": min(_timed(g2r(mixed)) for _ in range(2))}
+
+
+def section_training(args) -> dict:
+    """benchmarks/train_denoiser_example.py: share of a training step spent synthesising."""
+    output = Path(args.workdir) / "training.json"
+    Path(args.workdir).mkdir(parents=True, exist_ok=True)
+    _timed([sys.executable, str(HERE / "train_denoiser_example.py"), "--json", str(output), "--profile", args.profile])
+    return json.loads(output.read_text())
+
+
 SECTIONS = {"bandwidth": section_bandwidth, "numpy": section_numpy, "jax": section_jax,
-            "sampling": section_sampling, "convert": section_convert}
+            "sampling": section_sampling, "convert": section_convert, "noise": section_noise,
+            "startup": section_startup, "mixed": section_mixed, "training": section_training}
 
 
 # ----------------------------------------------------------------------------- driver
@@ -352,6 +462,34 @@ def report(results: dict, args) -> str:
                      f"({theirs['frames_per_s']:.3f} frames/s); speed-up {convert['speedup']:.1f}x with process "
                      f"start and JIT compile; per frame once running {ours['marginal_seconds_per_frame']:.2f} s vs "
                      f"{1 / theirs['frames_per_s']:.2f} s: {convert['steady_speedup']:.1f}x")
+    noise = results.get("noise")
+    if noise:
+        lines.append(f"noise on vs off, unprocess_batch under jit, batch {noise['batch']}, profile {noise['profile']} "
+                     f"(ms/frame wall best-of, CPU ms/frame):")
+        for dtype in ("uint8", "float32"):
+            off, on = noise[f"{dtype}_noise_off"], noise[f"{dtype}_noise_on"]
+            lines.append(f"  {dtype:7s} off {off['wall_ms_per_frame']:6.1f} wall {off['cpu_ms_per_frame']:6.1f} CPU | "
+                         f"on {on['wall_ms_per_frame']:6.1f} wall {on['cpu_ms_per_frame']:6.1f} CPU | noise costs "
+                         f"{on['wall_ms_per_frame'] / off['wall_ms_per_frame']:.2f}x wall, "
+                         f"{on['cpu_ms_per_frame'] / off['cpu_ms_per_frame']:.2f}x CPU")
+        lines.append(f"  float32 input costs {noise['float32_noise_off']['cpu_ms_per_frame'] / noise['uint8_noise_off']['cpu_ms_per_frame']:.2f}x "
+                     f"uint8 (noise off, CPU): sRGB decode by pow() per channel instead of a 256-entry table, 12 bytes/pixel read")
+    startup = results.get("startup")
+    if startup:
+        lines.append(f"g2r-convert, 8 PNGs: cold cache {startup['cold_cache_seconds']:.1f} s, warm cache "
+                     f"{startup['warm_cache_seconds']:.1f} s, no cache {startup['no_cache_seconds']:.1f} s; published numpy "
+                     f"{startup['published_numpy_seconds']:.1f} s: {startup['speedup_warm']:.1f}x warm, "
+                     f"{startup['speedup_cold']:.1f}x cold; --help {startup['help_seconds']:.2f} s")
+    mixed = results.get("mixed")
+    if mixed:
+        lines.append(f"mixed sizes (up to {mixed['size'][0]}x{mixed['size'][1]}, no compile cache): 11 PNGs of 11 sizes "
+                     f"{mixed['mixed11_seconds']:.1f} s vs 12 PNGs of one size {mixed['uniform12_seconds']:.1f} s "
+                     f"({mixed['mixed11_seconds'] / mixed['uniform12_seconds']:.2f}x)")
+    training = results.get("training")
+    if training:
+        lines.append(f"training step ({training['batch']} crops {training['crop']}x{training['crop']}, {training['device']}): "
+                     f"{1e3 * training['step_seconds_median']:.1f} ms, synthesis {1e3 * training['synthesis_seconds_median']:.1f} ms "
+                     f"= {100 * training['synthesis_share']:.0f}% of the step")
     return "\n".join(lines)
 
 
