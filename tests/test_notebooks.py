@@ -3,7 +3,8 @@
 The kernel is this interpreter (a kernel spec written to a temporary folder), so the notebooks see the
 same installed g2r_jax as the tests. Notebooks that read ../shared/data (those naming the
 G2R_JAX_SHARED_DATA override) also run with that folder hidden, as on a user's fresh clone (marked
-slow where the folder exists, so the default run executes every notebook once).
+slow where the folder exists). The default run executes the quick notebooks once; the slow suite
+executes all of them (SLOW_NOTEBOOKS).
 Before every `plt.show()` a check injected by the test asserts that each figure has axis labels and
 a legend. Stored notebooks must carry no outputs, so diffs stay readable.
 """
@@ -70,14 +71,22 @@ def _reads_shared_data(path: Path) -> bool:
     return DATA_OVERRIDE in path.read_text()
 
 
+# Notebooks that take 35-70 s each even at their quick settings (measured on 2 cores, with and
+# without ../shared/data): they run in the slow suite (`python -m pytest -m slow
+# tests/test_notebooks.py`), so that the default run stays a few minutes.
+SLOW_NOTEBOOKS = {"measured_data_audit", "illuminant_distributions", "colour_charts"}
+
+
 def _cases():
-    # Each notebook runs once in the default (not slow) run, on whatever data is there; where the
-    # shared data is present, the extra fresh-clone run of the notebooks that read it is marked slow.
+    # Every other notebook runs once in the default (not slow) run, on whatever data is there; where
+    # the shared data is present, the extra fresh-clone run of the notebooks that read it is slow.
     fresh_clone_marks = [pytest.mark.slow] if SHARED_DATA.is_dir() else []
     for path in NOTEBOOKS:
-        yield pytest.param(path, "shared-data", id=f"{path.stem}[shared-data]")
+        marks = [pytest.mark.slow] if path.stem in SLOW_NOTEBOOKS else []
+        yield pytest.param(path, "shared-data", id=f"{path.stem}[shared-data]", marks=marks)
         if _reads_shared_data(path):
-            yield pytest.param(path, "no-shared-data", id=f"{path.stem}[no-shared-data]", marks=fresh_clone_marks)
+            yield pytest.param(path, "no-shared-data", id=f"{path.stem}[no-shared-data]",
+                               marks=marks or fresh_clone_marks)
 
 
 def _run(path: Path, kernel_specs: KernelSpecManager) -> float:
