@@ -361,7 +361,10 @@ def camera_neutral_to_xy(neutral, model: DngColourModel, *, max_steps: int = 200
     neutral = neutral.astype(dtype)
     if model.is_triple:
         return _camera_neutral_to_xy_triple(neutral, model, max_steps, tolerance, throw)
-    solver = optx.Bisection(rtol=tolerance, atol=tolerance)
+    # without `throw` nothing may stop the program (nor put a host callback in it, which keeps it
+    # out of the persistent compilation cache): a root outside the bracket widens the bracket
+    # (g is decreasing in w) instead of raising, and `converged` says how it went
+    solver = optx.Bisection(rtol=tolerance, atol=tolerance, expand_if_necessary=not throw)
     solution = optx.root_find(_weight_residual, solver, jnp.asarray(0.5, dtype), args=(neutral, model),
                               # a margin outside [0, 1] keeps g strictly positive/negative at the ends
                               # (g(0) = 0 when the white is beyond the upper calibration CCT)

@@ -31,6 +31,7 @@ removes variance there.
 
 Public API (numpy, not jitted; analysis, not the simulation core):
 - `estimate_noise_level_function(planes, ...) -> NoiseLevelEstimate`
+- `block_statistics(planes, ...) -> BlockStatistics`: step 1 once, for several estimates
 - `estimate_noise_correlation(planes, ...) -> NoiseCorrelationEstimate`
 - `checkerboard_regions(plane_shape, tile)`: two complementary region masks (fit / held out)
 - `quantisation_variance(black_level, white_level)`: 1/12 DN^2 in normalised units
@@ -42,6 +43,7 @@ import dataclasses
 from functools import lru_cache
 
 import numpy as np
+from scipy import special as _special
 
 # Unique lags (dy, dx) of a half 5 x 5 window: the support of the autocovariance of noise
 # correlated by a 3 x 3 kernel (C(-l) = C(l)).
@@ -237,11 +239,14 @@ def _block_statistics(tiles: np.ndarray, block: int):
     """Per block: mean, max, min signal and (N, 14) statistics: the 13 residual lag statistics
     and the residual's energy in the low-frequency shapes (`_low_frequency_basis`)."""
     residual = tiles @ _residual_projection(block)
+    square = residual.reshape(-1, block, block)
     stats = np.empty((tiles.shape[0], len(LAGS) + 1))
     for k, (dy, dx) in enumerate(LAGS):
-        i, j = _lag_pairs(block, dy, dx)
-        stats[:, k] = np.mean(residual[:, i] * residual[:, j], axis=1)
-    stats[:, -1] = np.sum((residual @ _low_frequency_basis(block)) ** 2, axis=1)
+        # the pixel pairs at offset (dy, dx) inside a block, as two overlapping windows
+        first = square[:, :block - dy, max(0, -dx):block - max(0, dx)]
+        second = square[:, dy:, max(0, dx):block + min(0, dx)]
+        stats[:, k] = np.einsum("nij,nij->n", first, second) / first[0].size
+    stats[:, -1] = np.einsum("nk,nk->n", low := residual @ _low_frequency_basis(block), low)
     return tiles.mean(axis=1), tiles.max(axis=1), tiles.min(axis=1), stats
 
 
@@ -257,17 +262,42 @@ def _lag_indicators(block: int) -> np.ndarray:
     return out
 
 
+@lru_cache(maxsize=8)
+def _quadratic_form_tables(block: int):
+    """Traces that make `_quadratic_form_moments` a few dot products: with Sigma = sum_l c_l S_l,
+    tr(R Sigma R) = c . t and tr((R Sigma R)^2) = c^T G c (likewise for the low-frequency
+    shapes B^T Sigma B), t and G precomputed from the lag indicators S_l."""
+    residual, basis = _residual_projection(block), _low_frequency_basis(block)
+    indicators = _lag_indicators(block)
+    m = np.einsum("ij,ljk,km->lim", residual, indicators, residual)
+    low = np.einsum("ji,ljk,km->lim", basis, indicators, basis)
+    tables = []
+    for a in (m, low):
+        flat = a.reshape(len(LAGS), -1)
+        tables.append((np.trace(a, axis1=1, axis2=2), flat @ flat.T, a.shape[1]))
+    return tuple(tables)
+
+
 def _quadratic_form_moments(autocovariance: np.ndarray, block: int):
     """(mean, degrees of freedom) of n s0 = e^T e and of the low-frequency energy under noise of
     this autocovariance: e ~ N(0, M), M = R Sigma R, so each is a weighted chi-square, matched
     by a scaled chi-square with k = tr(M)^2 / tr(M^2) (Satterthwaite, Biometrics Bulletin 1946)."""
-    residual = _residual_projection(block)
-    sigma = np.tensordot(autocovariance, _lag_indicators(block), axes=1)
-    m = residual @ sigma @ residual
-    basis = _low_frequency_basis(block)
-    low = basis.T @ sigma @ basis
-    dof = lambda a: float(np.clip(np.trace(a) ** 2 / max(np.sum(a * a), 1e-300), 1.0, a.shape[0]))
-    return (np.trace(m), dof(m)), (np.trace(low), dof(low))
+    c = np.asarray(autocovariance, np.float64)
+    out = []
+    for trace, gram, size in _quadratic_form_tables(block):
+        mean, square = np.float64(c @ trace), np.float64(c @ gram @ c)   # numpy floats: x / 0 -> inf, as before
+        out.append((mean, float(np.clip(mean**2 / max(square, 1e-300), 1.0, size))))
+    return tuple(out)
+
+
+def _chi2_ppf(q, k):
+    """Quantile of chi-square(k): 2 P^-1(k/2, q), P the regularised lower incomplete gamma
+    function (what scipy.stats.chi2.ppf computes, without its per-call overhead)."""
+    return 2.0 * _special.gammaincinv(0.5 * k, q)
+
+
+def _chi2_cdf(x, k):
+    return _special.gammainc(0.5 * k, 0.5 * x)
 
 
 def _robust_mean_statistics(stats: np.ndarray, block: int, iterations: int = 40):
@@ -283,17 +313,15 @@ def _robust_mean_statistics(stats: np.ndarray, block: int, iterations: int = 40)
     fixed point; the truncated mean is corrected by E[X | X < q] = F_{k+2}(q) / F_k(q) E[X] for
     X ~ chi2_k (Johnson, Kotz & Balakrishnan, Continuous Univariate Distributions 1, ch. 18).
     """
-    from scipy.stats import chi2
-
     n = block * block
     energy, low = stats[:, 0] * n, stats[:, -1]
     c = np.zeros(len(LAGS))
-    c[0] = np.quantile(stats[:, 0], 0.1) / (chi2.ppf(0.1, n - 3) / (n - 3)) * n / (n - 3)
+    c[0] = np.quantile(stats[:, 0], 0.1) / (_chi2_ppf(0.1, n - 3) / (n - 3)) * n / (n - 3)
     keep = np.ones(len(energy), bool)
     mean = stats[:, :-1].mean(axis=0)
     for _ in range(iterations):
         (mean_energy, k), (mean_low, k_low) = _quadratic_form_moments(c, block)
-        q, q_low = chi2.ppf(KEEP_QUANTILE, k), chi2.ppf(KEEP_QUANTILE_LOW, k_low)
+        q, q_low = _chi2_ppf(KEEP_QUANTILE, k), _chi2_ppf(KEEP_QUANTILE_LOW, k_low)
         new_keep = (energy <= mean_energy * q / k) & (low <= mean_low * q_low / k_low)
         if new_keep.sum() < 2:
             keep = new_keep
@@ -301,8 +329,8 @@ def _robust_mean_statistics(stats: np.ndarray, block: int, iterations: int = 40)
         # expected fraction of the energy kept by each truncation (the low-frequency part is
         # mean_low / mean_energy of the total)
         share = mean_low / mean_energy
-        kept_fraction = (chi2.cdf(q, k + 2) / KEEP_QUANTILE) * (
-            1 - share + share * chi2.cdf(q_low, k_low + 2) / KEEP_QUANTILE_LOW)
+        kept_fraction = (_chi2_cdf(q, k + 2) / KEEP_QUANTILE) * (
+            1 - share + share * _chi2_cdf(q_low, k_low + 2) / KEEP_QUANTILE_LOW)
         mean = stats[new_keep, :-1].mean(axis=0) / kept_fraction
         new_c = _solve(mean, block)
         if new_c[0] <= 0:
@@ -318,7 +346,8 @@ def _robust_mean_statistics(stats: np.ndarray, block: int, iterations: int = 40)
 def _bootstrap_means(samples: np.ndarray, n_bootstrap: int, rng) -> np.ndarray:
     """(n_bootstrap, k) means of samples (N, k) resampled with replacement."""
     n = len(samples)
-    weights = np.stack([np.bincount(rng.integers(0, n, n), minlength=n) for _ in range(n_bootstrap)])
+    draws = rng.integers(0, n, (n_bootstrap, n)) + n * np.arange(n_bootstrap)[:, None]
+    weights = np.bincount(draws.ravel(), minlength=n_bootstrap * n).reshape(n_bootstrap, n)
     return weights @ samples / n
 
 
@@ -330,12 +359,39 @@ def _per_position(value, default) -> np.ndarray:
     return np.resize(np.asarray(default if value is None else value, np.float64), 4)
 
 
+@dataclasses.dataclass(frozen=True)
+class BlockStatistics:
+    """The per-block quantities the estimators start from, per CFA position p: `mean`, `top`,
+    `bottom` (N_p,) signal of each 8 x 8 block and `stats` (N_p, 14) (`_block_statistics`).
+    Computed once (`block_statistics`), they serve several estimates: the two halves of a file's
+    regions and, concatenated (`concatenate`), both together."""
+
+    mean: tuple
+    top: tuple
+    bottom: tuple
+    stats: tuple
+    block: int
+
+    def concatenate(self, *others: "BlockStatistics") -> "BlockStatistics":
+        parts = (self,) + others
+        join = lambda name: tuple(np.concatenate([getattr(b, name)[p] for b in parts]) for p in range(len(self.mean)))
+        return BlockStatistics(mean=join("mean"), top=join("top"), bottom=join("bottom"), stats=join("stats"),
+                               block=self.block)
+
+
+def block_statistics(planes, *, block: int = BLOCK, region=None) -> BlockStatistics:
+    """Block statistics of (P, h, w) planes (blocks fully inside `region` when given), for
+    `estimate_noise_level_function` / `estimate_noise_correlation` in place of the planes."""
+    columns = [_block_statistics(_blocks(np.asarray(plane, np.float64), block, region), block) for plane in planes]
+    return BlockStatistics(*(tuple(c[k] for c in columns) for k in range(4)), block=block)
+
+
 def _bin_blocks(planes, *, block, edges, clip, clip_low, region):
-    """For each position: block means, statistics (N, 14), and each block's bin index (-1: none)."""
+    """For each position: block means, statistics (N, 14), and each block's bin index (-1: none).
+    `planes`: (P, h, w) planes or their `BlockStatistics`."""
+    found = planes if isinstance(planes, BlockStatistics) else block_statistics(planes, block=block, region=region)
     out = []
-    for p in range(planes.shape[0]):
-        tiles = _blocks(np.asarray(planes[p], np.float64), block, region)
-        mean, top, bottom, stats = _block_statistics(tiles, block)
+    for p, (mean, top, bottom, stats) in enumerate(zip(found.mean, found.top, found.bottom, found.stats)):
         unclipped = (top < clip[p]) & (bottom > clip_low[p])
         index = np.searchsorted(edges, mean, side="right") - 1
         index[~unclipped | (mean >= edges[-1])] = -1
@@ -367,6 +423,14 @@ def _local_scale(mean, signal_row, variance_row):
                                np.where(u > xs[-1], ys[-1] + last_slope * (u - xs[-1]), inside)))
 
     return lambda m, at: curve(at) / curve(m)
+
+
+def _planes_or_blocks(planes, block, region) -> BlockStatistics:
+    if isinstance(planes, BlockStatistics):
+        if planes.block != block or region is not None:
+            raise ValueError("block statistics were computed for another block size or without this region")
+        return planes
+    return block_statistics(planes, block=block, region=region)
 
 
 @dataclasses.dataclass
@@ -428,7 +492,8 @@ def estimate_noise_level_function(planes, *, clip=None, clip_low=None, edges=Non
 
     **Arguments:**
     - `planes`: (4, H/2, W/2) normalised planes, x = (DN - black) / (white - black)
-      (`g2r_jax.audit.stats.to_normalised_planes`).
+      (`g2r_jax.audit.stats.to_normalised_planes`), or their `block_statistics` (computed once
+      for several estimates).
     - `clip`: (4,) or scalar normalised white clip (default 1.0): blocks reaching it are left out.
     - `clip_low`: (4,) or scalar normalised value of raw DN 0, i.e. -black / (white - black)
       (default -inf: no black clip); a DNG with BlackLevel 0 has 0 here.
@@ -440,8 +505,8 @@ def estimate_noise_level_function(planes, *, clip=None, clip_low=None, edges=Non
 
     **Returns:** a `NoiseLevelEstimate`.
     """
-    planes = np.asarray(planes, np.float64)
-    n_pos = planes.shape[0]
+    planes = _planes_or_blocks(planes, block, region)
+    n_pos = len(planes.mean)
     clip, clip_low = _per_position(clip, 1.0), _per_position(clip_low, -np.inf)
     edges = default_edges(n_bins) if edges is None else np.asarray(edges, np.float64)
     n = len(edges) - 1
@@ -479,14 +544,14 @@ def estimate_noise_correlation(planes, *, clip=None, clip_low=None, edges=None, 
     rho > 0 at (0, 1), (1, 0), (1, 1). Intervals by bootstrap over blocks. Arguments as
     `estimate_noise_level_function`.
     """
-    planes = np.asarray(planes, np.float64)
+    planes = _planes_or_blocks(planes, block, region)
     clip, clip_low = _per_position(clip, 1.0), _per_position(clip_low, -np.inf)
     edges = default_edges(n_bins) if edges is None else np.asarray(edges, np.float64)
     measured = _measure_bins(planes, clip=clip, clip_low=clip_low, edges=edges, block=block, region=region,
                              min_blocks=min_blocks)
     rng = np.random.default_rng(seed)
     alpha = (1.0 - confidence) / 2
-    n_pos = planes.shape[0]
+    n_pos = len(planes.mean)
     rho, lower, upper, sd = (np.full((n_pos, len(LAGS)), np.nan) for _ in range(4))
     blocks = np.zeros(n_pos, int)
     for p, bins in enumerate(measured):

@@ -19,6 +19,7 @@ import numpy as np
 
 TILE = 64
 MAX_TILES = 160
+MIN_TILES = 40
 N_BINS = 16
 SMALL_MIN_BLOCKS = 10
 
@@ -53,7 +54,7 @@ def nlf_edges(n_bins: int = N_BINS) -> np.ndarray:
 
 
 def noise_level_function(planes, *, clip, clip_low, edges=None, seed: int = 0, min_blocks: int = 30):
-    """Measured NLF of (4, h, w) planes with 95 % intervals: an object with (4, B) `signal`,
+    """Measured NLF of (4, h, w) planes (or their `noise_estimation.block_statistics`) with 95 % intervals: an object with (4, B) `signal`,
     `variance`, `lower`, `upper`, `counts`: a `noise_estimation.NoiseLevelEstimate`."""
     edges = nlf_edges() if edges is None else edges
     clip = np.broadcast_to(np.asarray(clip, np.float64), (4,))
@@ -71,16 +72,28 @@ def quantisation_variance(black_level, white_level) -> np.ndarray:
     return 1.0 / 12.0 / span**2
 
 
-def nlf_halves(planes, *, clip, clip_low, seed: int = 0) -> dict:
-    """{"A", "B", "all"}: the NLF measured on each checkerboard half of the tiles and on both.
+def tiles_per_half(n_files: int) -> int:
+    """Tiles per half for a set of `n_files` large files: MAX_TILES for up to 4 files, then fewer
+    (at least MIN_TILES), so that the set's total stays near 4 * MAX_TILES: the noise test pools
+    the files (and with 3 or more, its standard error is at least their between-file spread), so
+    24 files need no more regions each than 4 do."""
+    return int(np.clip(4 * MAX_TILES // max(n_files, 1), MIN_TILES, MAX_TILES))
+
+
+def nlf_halves(planes, *, clip, clip_low, seed: int = 0, max_tiles: int = MAX_TILES) -> dict:
+    """{"A", "B", "all"}: the NLF measured on each checkerboard half of the tiles and on both
+    (the blocks' statistics computed once).
     Bins: up to N_BINS, fewer for small files (about 150 blocks of 8 x 8 per bin and plane); a
     bin needs SMALL_MIN_BLOCKS kept blocks in files with fewer than 3000 blocks per plane (their
     power comes from pooling files), 30 otherwise."""
-    a, b = tile_halves(planes)
+    from ..noise_estimation import block_statistics
+
+    a, b = tile_halves(planes, max_tiles=max_tiles)
     blocks = (a.shape[1] * a.shape[2] + b.shape[1] * b.shape[2]) / 64
     edges = nlf_edges(int(np.clip(blocks / 150, 6, N_BINS)))
     least = 30 if blocks >= 3000 else SMALL_MIN_BLOCKS
-    both = np.concatenate([a, b], axis=1) if a.shape[2] == b.shape[2] else a
+    a, b = block_statistics(a), block_statistics(b)   # once; "all" is both halves' blocks together
+    both = a.concatenate(b)
     options = dict(clip=clip, clip_low=clip_low, edges=edges, min_blocks=least)
     return {"A": noise_level_function(a, seed=seed, **options),
             "B": noise_level_function(b, seed=seed + 1, **options),

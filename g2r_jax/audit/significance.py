@@ -107,10 +107,11 @@ def consistent_outliers(outlier_lists, shape, *, min_fraction: float = 0.4, min_
     height, width = shape
     n = len(outlier_lists)
     threshold = max(min_files, int(math.ceil(min_fraction * n)))
-    hits = np.zeros(height * width, np.int64)
-    for rows, cols, _ in outlier_lists:
-        hits += np.bincount(rows * width + cols, minlength=height * width)[:height * width]
-    chosen = np.flatnonzero(hits >= threshold)
+    flagged = [np.asarray(rows, np.int64) * width + np.asarray(cols, np.int64) for rows, cols, _ in outlier_lists]
+    flagged = np.concatenate(flagged) if flagged else np.zeros(0, np.int64)
+    flagged = flagged[(flagged >= 0) & (flagged < height * width)]
+    pixels, hits = np.unique(flagged, return_counts=True)   # sparse: a few flags among millions of pixels
+    chosen = pixels[hits >= threshold]
     values = []
     for index in chosen:
         per_file = [v[(r * width + c) == index] for r, c, v in outlier_lists]

@@ -86,6 +86,20 @@ def info_for(profile, metadata: dict, height: int, width: int, index: int = 0) -
         baseline_exposure=float(profile.baseline_exposure), iso=float(metadata["iso"]))
 
 
+def profile_key(profile) -> str:
+    """A digest of everything in the profile (its arrays' bytes and its structure): two profiles
+    with the same key simulate the same files from the same scenes and seed."""
+    import hashlib
+
+    leaves, structure = jax.tree_util.tree_flatten(profile)
+    digest = hashlib.sha256(str(structure).encode())
+    for leaf in leaves:
+        value = np.asarray(leaf)
+        digest.update(f"{value.dtype}{value.shape}".encode())
+        digest.update(value.tobytes())
+    return digest.hexdigest()
+
+
 def simulate(profile, scenes, seed: int, *, batch: int = 8) -> list[tuple[np.ndarray, DngInfo]]:
     """Run the profile's simulation on every scene.
 

@@ -24,6 +24,7 @@ RINGS = 7
 
 
 LARGE = 4_000_000
+LARGE_BLOCKS = 3000       # files with this many 8x8 blocks per plane carry their own noise evidence
 STRIDE_PIXELS = 750_000   # per-plane pixel count above which some statistics read a strided subset
 
 
@@ -50,16 +51,16 @@ def block_means(planes, size: int) -> np.ndarray:
     return planes[:, :h, :w].reshape(p, h // size, size, w // size, size).mean(axis=(2, 4))
 
 
-def radial_r2(plane_shape) -> np.ndarray:
+def radial_r2(plane_shape, *, step: int = 1) -> np.ndarray:
     """r^2 of every plane pixel (4, H/2, W/2), r = 1 in the corners (as the shading model,
-    `sensor.radial_distance_squared`)."""
+    `sensor.radial_distance_squared`); with `step`, of every step-th plane pixel only."""
     half_h, half_w = plane_shape
     height, width = 2 * half_h, 2 * half_w
     norm = (height - 1) ** 2 / 4 + (width - 1) ** 2 / 4
-    out = np.empty((4, half_h, half_w), np.float32)
+    out = np.empty((4, len(range(0, half_h, step)), len(range(0, half_w, step))), np.float32)
     for p, (dy, dx) in enumerate(((0, 0), (0, 1), (1, 0), (1, 1))):
-        rows = (np.arange(dy, height, 2) - (height - 1) / 2) ** 2
-        cols = (np.arange(dx, width, 2) - (width - 1) / 2) ** 2
+        rows = (np.arange(dy, height, 2)[::step] - (height - 1) / 2) ** 2
+        cols = (np.arange(dx, width, 2)[::step] - (width - 1) / 2) ** 2
         out[p] = (rows[:, None] + cols[None, :]) / norm
     return out
 
@@ -261,9 +262,11 @@ def brightness(planes, r2, clip) -> np.ndarray:
     centre (r^2 < 0.35, where shading is small). A global gain 2^e moves every percentile by
     exactly e as long as fewer than 30% of the pixels are black or clipped, so the statistic is
     equivariant to exposure; averaging nine percentiles smooths the steps of a piecewise-flat scene.
+    `r2`: `radial_r2` of the planes, or None (computed on the strided grid only).
     """
     step = _stride(planes)
-    centre = planes[:, ::step, ::step][:, r2[0, ::step, ::step] < 0.35]
+    r2 = radial_r2(planes.shape[1:], step=step) if r2 is None else r2[:, ::step, ::step]
+    centre = planes[:, ::step, ::step][:, r2[0] < 0.35]
     levels = np.quantile(np.log2(np.maximum(centre, 1e-4)), np.linspace(0.3, 0.7, 9))
     return np.array([levels.mean()])
 
@@ -297,18 +300,35 @@ def outliers(planes, clip, threshold: float = 0.12):
     rows, cols, values = [], [], []
     _, h, w = planes.shape
     padded = np.pad(planes, ((0, 0), (1, 1), (1, 1)), mode="reflect")
-    neighbours = np.stack([padded[:, 1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
-                           for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx])
+    shifts = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx]
+    # |x - median| > threshold needs at least 4 of the 8 neighbours below x - threshold (or above
+    # x + threshold): the median of 8 is the mean of the 4th and 5th smallest. Then any 5 of the
+    # neighbours include one below (above) it: that cheap test on the whole plane leaves ~1 % of
+    # the pixels, where the 8 neighbours are gathered, counted, and the medians taken.
+    margin = planes.dtype.type(threshold * (1 - 1e-6))   # a superset of the pixels that can qualify
+    view = lambda dy, dx: padded[:, 1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+    low, high = view(*shifts[0]).copy(), view(*shifts[0]).copy()
+    for dy, dx in shifts[1:5]:
+        np.minimum(low, view(dy, dx), out=low)
+        np.maximum(high, view(dy, dx), out=high)
+    rough = np.nonzero((low < planes - margin) | (high > planes + margin))
+    del low, high
+    p_idx, r_idx, c_idx = rough
+    neighbours = np.stack([padded[p_idx, r_idx + 1 + dy, c_idx + 1 + dx] for dy, dx in shifts])
+    centre = planes[rough]
+    candidate = (np.sum(neighbours < centre - margin, axis=0) >= 4) | (np.sum(neighbours > centre + margin, axis=0) >= 4)
+    p_idx, r_idx, c_idx, centre, neighbours = p_idx[candidate], r_idx[candidate], c_idx[candidate], centre[candidate], neighbours[:, candidate]
     middle = np.partition(neighbours, (3, 4), axis=0)
     median = 0.5 * (middle[3] + middle[4])
     absolute = np.partition(np.abs(neighbours - median), (3, 4), axis=0)
     spread = _MAD_TO_STD * 0.5 * (absolute[3] + absolute[4])
-    hit = np.abs(planes - median) > threshold + 6 * spread
+    hit = np.abs(centre - median) > threshold + 6 * spread
     for p in range(4):
-        r, c = np.nonzero(hit[p])
+        chosen = hit & (p_idx == p)
+        r, c = r_idx[chosen], c_idx[chosen]
         rows.append(2 * r + p // 2)
         cols.append(2 * c + p % 2)
-        values.append(planes[p][r, c])
+        values.append(centre[chosen])
     return np.concatenate(rows), np.concatenate(cols), np.concatenate(values)
 
 
@@ -346,13 +366,16 @@ def _gain_map_log_corner(data: bytes, shape, cfa_pattern) -> np.ndarray:
 SHADING_SIDE = 600   # planes larger than this (shorter side) are binned before the shading fit
 
 
-def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: int = 0) -> dict:
+def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: int = 0,
+                    nlf_tiles: int | None = None) -> dict:
     """All statistics of one file (mosaic (H, W) DN, its DngInfo) as a dict of numpy arrays.
 
-    Keys: dark_floor (4), clip (4), band (2), nlf {"A", "B"} (noise level function of each
-    checkerboard half of the tiles, `evidence.nlf_halves`), quantisation (4), iso, green (1),
+    Keys: dark_floor (4), clip (4), band (2), nlf {"A", "B", "all"} (noise level function of each
+    checkerboard half of the tiles, `evidence.nlf_halves`; None in files of fewer than
+    LARGE_BLOCKS blocks a plane, which have nlf_var, nlf_level instead), quantisation (4), iso, green (1),
     shading (4, raw shading minus what the file's own GainMap puts there), gain_map_shading (4),
     brightness (1), noise_corr (1), outliers (rows, cols, values) or None, neutral (3), shape, name, span.
+    `nlf_tiles`: tiles per half for the NLF (default `evidence.MAX_TILES`; `evidence.tiles_per_half`).
     """
     from . import evidence
 
@@ -367,12 +390,14 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: 
     clip = np.where(spike >= 1.0 - 0.5 / span, 1.0, spike - floor)
     band = banding(planes)
     top = np.where(np.isfinite(spike), spike, 1.0) - 2.0 / span
-    # on the floor-subtracted planes, like every statistic but the floor: a pedestal is black_level's
-    nlf = evidence.nlf_halves(planes, clip=top - floor, clip_low=-black / span + 2.0 / span - floor, seed=seed)
     blocks = planes[0].size / 64
+    # large files: the NLF of each half of the tiles, tested in closed form (on the
+    # floor-subtracted planes, like every statistic but the floor: a pedestal is black_level's);
     # small files: the neighbour-pair NLF, compared with simulated files over files
-    nlf_var, nlf_level = noise_level_function(planes, clip, band) if blocks < 3000 else (None, None)
-    r2 = radial_r2(planes.shape[1:])
+    nlf = (evidence.nlf_halves(planes, clip=top - floor, clip_low=-black / span + 2.0 / span - floor, seed=seed,
+                               max_tiles=nlf_tiles or evidence.MAX_TILES)
+           if blocks >= LARGE_BLOCKS else None)
+    nlf_var, nlf_level = noise_level_function(planes, clip, band) if blocks < LARGE_BLOCKS else (None, None)
     greens = tuple(int(i) for i in np.flatnonzero(np.asarray(info.cfa_pattern) == 1)[:2])
     from .. import fit as _fit
     neutral = _fit.as_shot_neutral(info)
@@ -386,7 +411,7 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: 
         "quantisation": evidence.quantisation_variance(black, white),
         "iso": float(iso), "green": green_ratio(planes, greens, clip, floor),
         "shading": shading_profile(shading_planes, clip) - gain_map, "gain_map_shading": gain_map,
-        "brightness": brightness(planes, r2, clip), "noise_corr": noise_correlation(planes if _stride(planes) == 1 else evidence.tile_halves(planes)[0]),
+        "brightness": brightness(planes, None, clip), "noise_corr": noise_correlation(planes if _stride(planes) == 1 else evidence.tile_halves(planes)[0]),
         "outliers": outliers(planes, clip) if with_outliers else None,
         "neutral": None if neutral is None else np.asarray(neutral, np.float64),
         "shape": tuple(np.shape(mosaic)), "name": str(getattr(info, "path", "")), "span": span,

@@ -34,18 +34,6 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _enable_compilation_cache() -> None:
-    """Persist XLA compilations between runs (the simulation compiles in ~10 s on 2 cores)."""
-    try:
-        import jax
-
-        cache = Path.home() / ".cache" / "g2r_jax" / "jax"
-        cache.mkdir(parents=True, exist_ok=True)
-        jax.config.update("jax_compilation_cache_dir", str(cache))
-    except Exception:  # noqa: BLE001 - a cache is an optimisation only
-        pass
-
-
 def _run(args) -> int:
     from ..audit import diagnose, loading, report
     from ..profile import load_profile, save_profile
@@ -55,7 +43,6 @@ def _run(args) -> int:
     if args.folds < 2:
         raise ValueError(f"--folds {args.folds}: need at least 2")
     report_path = Path(args.report)
-    _enable_compilation_cache()
     profile = load_profile(args.profile)
     if not args.measured and not args.charts:
         raise ValueError("give --measured DNG_DIR, --charts CHARTS.csv, or both")

@@ -31,6 +31,7 @@ import numpy as np
 from scipy import stats as _scipy_stats
 
 from ... import profile as _profile
+from ..stats import LARGE_BLOCKS   # files with this many 8x8 blocks per plane carry their own noise evidence
 from .base import Cause, as_profile_dtype
 
 DARK_LEVEL = 0.05   # NLF bins below this are read-noise dominated
@@ -88,9 +89,6 @@ def pooled(parts):
         between = np.nanstd(stack, 0, ddof=1) / np.sqrt(n)
     se = np.where(n >= 3, np.fmax(se, between), se)
     return np.where(total > 0, L, np.nan), np.where(total > 0, se, np.nan), np.where(total > 0, signal, np.nan)
-
-
-LARGE_BLOCKS = 3000      # files with this many 8x8 blocks per plane carry their own noise evidence
 
 
 def _large(files) -> list:
