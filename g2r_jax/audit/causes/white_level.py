@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Cause, as_profile_dtype, effects_replaced
+from .base import Cause, as_profile_dtype, effects_replaced, quiet_nanmean
 
 
 class WhiteLevel(Cause):
@@ -23,7 +23,13 @@ class WhiteLevel(Cause):
         return 100 * values
 
     def fit(self, measured, simulated, profile, *, seed=0):
-        level = float(profile.effects.clip_level) + float(np.median(self.mean_difference(measured, simulated, profile)))
+        """The profile's clip level moved by the median difference over the CFA positions that
+        clip in both sets: a position without a saturation spike (a colour the scenes never drive
+        to the top) says nothing about the level and must not pull the median towards 0."""
+        difference = (quiet_nanmean(self.vectors(measured, profile))
+                      - quiet_nanmean(self.vectors(simulated, profile)))
+        difference = difference[np.isfinite(difference)]
+        level = float(profile.effects.clip_level) + (float(np.median(difference)) if difference.size else 0.0)
         return {"clip_level": float(min(level, 1.0))}
 
     def apply(self, profile, params):
