@@ -29,11 +29,29 @@ def _leaf_colour(rng) -> np.ndarray:
     return np.clip(lightness * tint / tint.max() * rng.uniform(0.85, 1.0), 0.0, 1.0)
 
 
-def dead_leaves(seed: int, height: int = 200, width: int = 300, *, n_leaves: int = 600,
+N_LEAVES = 600          # leaves of a 200 x 300 scene (and at least this many at any size)
+COVERAGE = 3.0          # leaf area painted per pixel: e^-3 ~ 5 % of the background shows through
+
+
+def leaf_count(height: int, width: int, r_min: float = 5.0, r_max: float | None = None) -> int:
+    """Leaves that paint COVERAGE times the image area on average: area / (pi E[r^2]), with
+    E[r^2] = 2 r_min^2 r_max^2 ln(r_max / r_min) / (r_max^2 - r_min^2) for p(r) ~ r^-3 on
+    [r_min, r_max]; at least N_LEAVES (the count of 200 x 300 scenes, where this gives ~600).
+    A fixed count would leave large scenes mostly background: a 1000 x 1500 scene of 600 leaves
+    is ~85 % one colour, with too little black for a dark floor or texture for anything else."""
+    r_max = r_max or min(height, width) / 6
+    if r_max <= r_min:
+        return N_LEAVES
+    mean_r2 = 2 * r_min**2 * r_max**2 * np.log(r_max / r_min) / (r_max**2 - r_min**2)
+    return int(max(N_LEAVES, round(COVERAGE * height * width / (np.pi * mean_r2))))
+
+
+def dead_leaves(seed: int, height: int = 200, width: int = 300, *, n_leaves: int | None = None,
                 r_min: float = 5.0, r_max: float | None = None) -> np.ndarray:
     """One dead-leaves image (H, W, 3) float32 sRGB in [0, 1].
 
-    **Arguments:** `seed`: the image is a pure function of it; `n_leaves`: leaves painted;
+    **Arguments:** `seed`: the image is a pure function of it; `n_leaves`: leaves painted
+    (default `leaf_count`: the same coverage, so the same pixel statistics, at every size);
     `r_min`, `r_max`: leaf radius range in pixels (default maximum: a sixth of the shorter side).
 
     **Returns:** the image. Leaves are painted back to front over a one-colour background, each
@@ -42,6 +60,7 @@ def dead_leaves(seed: int, height: int = 200, width: int = 300, *, n_leaves: int
     [r_min, r_max].
     """
     rng = np.random.default_rng(seed)
+    n_leaves = leaf_count(height, width, r_min, r_max) if n_leaves is None else n_leaves
     r_max = r_max or min(height, width) / 6
     image = np.empty((height, width, 3), np.float32)
     image[:] = _leaf_colour(rng)

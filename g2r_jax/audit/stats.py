@@ -8,6 +8,7 @@ pedestal shows up in `dark_floor` only. `file_statistics` computes them all.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import numpy as np
@@ -371,7 +372,8 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: 
     """All statistics of one file (mosaic (H, W) DN, its DngInfo) as a dict of numpy arrays.
 
     Keys: dark_floor (4), clip (4), band (2), nlf {"A", "B", "all"} (noise level function of each
-    checkerboard half of the tiles, `evidence.nlf_halves`; None in files of fewer than
+    checkerboard half of the tiles, `evidence.nlf_halves`, its `signal` above the BlackLevel tag, not
+    above the measured floor; None in files of fewer than
     LARGE_BLOCKS blocks a plane, which have nlf_var, nlf_level instead), quantisation (4), iso, green (1),
     shading (4, raw shading minus what the file's own GainMap puts there), gain_map_shading (4),
     brightness (1), noise_corr (1), outliers (rows, cols, values) or None, neutral (3), shape, name, span.
@@ -397,6 +399,11 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: 
     nlf = (evidence.nlf_halves(planes, clip=top - floor, clip_low=-black / span + 2.0 / span - floor, seed=seed,
                                max_tiles=nlf_tiles or evidence.MAX_TILES)
            if blocks >= LARGE_BLOCKS else None)
+    if nlf is not None:
+        # the noise depends on the signal above the true black, which the BlackLevel tag (plus the
+        # profile's pedestal) says, not the measured floor: that reads the darkest scene content
+        # (above black in a scene without black areas) minus ~2.6 noise sigmas of a 4x4 mean
+        nlf = {half: dataclasses.replace(e, signal=e.signal + floor[:, None]) for half, e in nlf.items()}
     nlf_var, nlf_level = noise_level_function(planes, clip, band) if blocks < LARGE_BLOCKS else (None, None)
     greens = tuple(int(i) for i in np.flatnonzero(np.asarray(info.cfa_pattern) == 1)[:2])
     from .. import fit as _fit

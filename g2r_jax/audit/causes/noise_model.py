@@ -5,13 +5,15 @@ signal bin, from flat blocks of each checkerboard half of the file's tiles
 (`evidence.nlf_halves`), with 95 % bootstrap intervals.
 
 How it is tested: against the profile's closed form, not against re-simulated scenes: the model
-predicts the variance shot(ISO) x + read(ISO) + 1/12 DN^2 (rounding) at every signal level x.
-Per bin, L = log(measured / predicted), its standard error from the interval, the two halves
-combined by inverse variance, minus the estimator's own bias where the simulated files show one
-(their median L per bin, usually ~0). z = L / se; score = max |z| over bins, positions and files;
-p Bonferroni over those bins. Significant when p is below the threshold and some bin deviates by
-more than `tolerance` in log variance beyond two standard errors. One file is enough: its
-thousands of blocks give the intervals.
+predicts the variance shot(ISO) x + read(ISO) + 1/12 DN^2 (rounding) at every signal level x
+above the sensor's black (the BlackLevel tag plus the profile's pedestal; not the measured dark
+floor, which reads scene content where a scene has no black). Per bin, L = log(measured /
+predicted) on both halves of the tiles, its standard error from the interval widened by the
+halves' disagreement (texture the estimator could not reject, `combined`), bins of at least
+RELIABLE_BLOCKS blocks; files pooled by inverse variance. z = L / se; score = max |z| over
+bins, positions and files; p Bonferroni over those bins. Significant when p is below the
+threshold and some bin deviates by more than `closed_form_tolerance` in log variance beyond two
+standard errors. One file is enough: its thousands of blocks give the intervals.
 
 Extension (large files): a noise level function per CFA position (`NoiseModel.level_knots`,
 `level_variance`), fitted on half A of the tiles by `noise_extension.fit_noise_extension`;
@@ -23,6 +25,7 @@ factors of `NoiseModel.shot` and `read` per position, validated by re-simulation
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from pathlib import Path
 
@@ -52,7 +55,15 @@ def model_variance(profile, f, signal) -> np.ndarray:
     level-function extension where it has one, `noise_extension.predicted_variance`) + rounding."""
     from ...noise_extension import predicted_variance
 
-    return predicted_variance(profile.noise, f["iso"], np.asarray(signal, np.float64)) + f["quantisation"][:, None]
+    return (predicted_variance(profile.noise, f["iso"], above_black(profile, f, signal))
+            + f["quantisation"][:, None])
+
+
+def above_black(profile, f, signal) -> np.ndarray:
+    """(4, B) signal above the sensor's black: above the BlackLevel tag (the NLF's axis,
+    `stats.file_statistics`) minus the profile's black pedestal."""
+    pedestal = np.asarray(profile.effects.black_pedestal, np.float64) / np.resize(np.asarray(f["span"], np.float64), 4)
+    return np.asarray(signal, np.float64) - pedestal[:, None]
 
 
 def log_ratio(profile, f, half: str):
@@ -67,8 +78,23 @@ def log_ratio(profile, f, half: str):
 
 
 def combined(profile, f):
-    """Both halves of a file's tiles together: (L, se, signal) per (position, bin)."""
-    return log_ratio(profile, f, "all")
+    """Both halves of a file's tiles together: (L, se, signal) per (position, bin), for the
+    closed-form test. Texture that escapes the estimator's rejection biases a bin's estimate by
+    an amount that depends on the few textured blocks kept, so it differs between scenes and
+    regions and the bootstrap interval (over the kept blocks) does not show it: on clean
+    dead-leaves files of 1000 x 1500 some bins read x0.6 or x1.2 at |z| > 7. Two safeguards:
+    only bins of at least RELIABLE_BLOCKS kept blocks, and the standard error widened by that
+    random effect as the two halves' disagreement shows it (halves A and B see different
+    objects of the scene: tau^2 = ((L_A - L_B)^2 - se_A^2 - se_B^2) / 2, method of moments as
+    DerSimonian & Laird 1986, and the mean of both halves carries tau^2 / 2)."""
+    L, se, signal = log_ratio(profile, f, "all")
+    counts = np.asarray(f["nlf"]["all"].counts)
+    if "A" in f["nlf"] and "B" in f["nlf"]:
+        (la, sa, _), (lb, sb, _) = log_ratio(profile, f, "A"), log_ratio(profile, f, "B")
+        tau2 = np.maximum(np.nan_to_num((la - lb) ** 2 - sa**2 - sb**2) / 2, 0.0)
+        se = np.sqrt(se**2 + tau2 / 2)
+    reliable = counts >= RELIABLE_BLOCKS
+    return np.where(reliable, L, np.nan), np.where(reliable, se, np.nan), np.where(reliable, signal, np.nan)
 
 
 def pooled(parts):
@@ -113,7 +139,7 @@ def corrected(profile, files, simulated, half="all", bias=None):
     bias on simulated files; bins without a simulated counterpart keep the closed form only when
     they hold RELIABLE_BLOCKS blocks."""
     bias = estimator_bias(profile, simulated) if bias is None else bias
-    L, se, signal = pooled([log_ratio(profile, f, half) for f in files])
+    L, se, signal = pooled([combined(profile, f) if half == "all" else log_ratio(profile, f, half) for f in files])
     counts = sum(np.asarray(f["nlf"][half].counts) for f in files)
     if bias is not None:
         b, b_se = bias
@@ -199,7 +225,9 @@ def fit_level_function(files, profile) -> dict:
     from ...noise_extension import fit_noise_extension
 
     f = max(files, key=lambda f: f["blocks"])
-    extended = fit_noise_extension(f["nlf"]["A"], profile, iso=f["iso"]).noise
+    half = f["nlf"]["A"]
+    extended = fit_noise_extension(dataclasses.replace(half, signal=above_black(profile, f, half.signal)), profile,
+                                   iso=f["iso"]).noise
     out = {"kind": "level_function", "fitted_on": Path(f.get("name") or "file").name, "at_iso": f["iso"]}
     for k in ("iso", "shot", "read", "level_knots", "level_variance"):
         out[k] = np.asarray(getattr(extended, k), np.float64).tolist()
@@ -212,6 +240,13 @@ class NoiseModel(Cause):
                  "95 % bootstrap intervals) against the profile's closed-form variance shot x + read + 1/12 DN^2")
     metric = "rms of log(measured / model variance) over the bins of held-out regions"
     floor, tolerance = 0.01, 0.08
+    closed_form_tolerance = 0.15   # log variance beyond 2 se: the largest texture deviation that survived the
+    # safeguards of `combined` on 16 clean or shaded 1000 x 1500 dead-leaves files was 0.135 (injected
+    # noise changes of x0.5-0.7 or x1.3-1.7 read 0.3-0.54)
+
+    def is_significant(self, finding, threshold):
+        tolerance = self.closed_form_tolerance if finding.get("closed_form") else self.tolerance
+        return bool(finding["p"] < threshold and finding["magnitude"] >= tolerance)
     region_heldout = True
 
     def vectors(self, files, profile):
@@ -247,7 +282,7 @@ class NoiseModel(Cause):
                     f"largest deviation x{ratio[worst]:.3g} at {100 * signal[worst]:.3g}% of range, CFA position "
                     f"{worst[0]}, z = {z[worst]:.1f}; {int(finite.sum())} bins of {len(measured)} file(s) pooled, Bonferroni p = {p:.3g}")
         return {"cause": self.name, "score": score, "p": p, "magnitude": magnitude, "statistic": self.statistic,
-                "evidence": evidence, "difference": np.nan_to_num(L).tolist()}
+                "evidence": evidence, "difference": np.nan_to_num(L).tolist(), "closed_form": True}
 
     def plot(self, measured, simulated, profile, extended=None):
         """The first file's measured NLF (both halves, with intervals) and the variance the
