@@ -157,6 +157,29 @@ def test_fit_recovers_injected_level_function_and_kernel():
     assert not correlation.white.any()
 
 
+def test_level_function_is_held_beyond_the_measured_bins():
+    """Bins only between 5 % and 30 % of the range, with a variance rising steeply (x^2): below the
+    lowest bin the fitted function must not fall on towards zero (read noise does not vanish in
+    the dark), nor rise on above the highest."""
+    signal = np.geomspace(0.05, 0.3, 8)
+    variance = 1e-4 * (signal / 0.05) ** 2
+    shape = (4, len(signal))
+    estimate = ne.NoiseLevelEstimate(
+        edges=np.geomspace(0.045, 0.33, len(signal) + 1), signal=np.tile(signal, (4, 1)),
+        variance=np.tile(variance, (4, 1)), lower=np.tile(0.98 * variance, (4, 1)),
+        upper=np.tile(1.02 * variance, (4, 1)), counts=np.full(shape, 500), rejected=np.zeros(shape, int),
+        autocovariance=np.full(shape + (len(ne.LAGS),), np.nan), confidence=0.95, block=ne.BLOCK)
+    fitted = nx.fit_level_function(estimate)
+    knots = nx.DEFAULT_KNOTS
+    below, above = knots < signal[0], knots > signal[-1]
+    assert below.sum() >= 10 and above.sum() >= 3
+    at_low, at_high = fitted[:, below][:, :1], fitted[:, above][:, :1]
+    np.testing.assert_allclose(fitted[:, below], np.broadcast_to(at_low, fitted[:, below].shape), rtol=1e-12)
+    np.testing.assert_allclose(fitted[:, above], np.broadcast_to(at_high, fitted[:, above].shape), rtol=1e-12)
+    assert np.all(np.abs(at_low / variance[0] - 1) < 0.05) and np.all(np.abs(at_high / variance[-1] - 1) < 0.05), (
+        at_low, at_high)
+
+
 @pytest.mark.data
 def test_gopro_frame_extension_has_a_heldout_gain(shared_data):
     """Issue 9 on the real HERO6 frame: fit the extension on half the regions, judge it on the

@@ -27,7 +27,10 @@ class ExposureDistribution(Cause):
         m = self.vectors(measured, profile)[:, 0]
         s = self.vectors(simulated, profile)[:, 0]
         old_std = float(profile.exposure.log2_std)
-        std = np.sqrt(max(old_std**2 + np.nanvar(m, ddof=1) - np.nanvar(s, ddof=1), 0.0))
+        if np.isfinite(m).sum() >= 2 and np.isfinite(s).sum() >= 2:
+            std = np.sqrt(max(old_std**2 + np.nanvar(m, ddof=1) - np.nanvar(s, ddof=1), 0.0))
+        else:   # one file says nothing about the spread between files (its variance would be NaN)
+            std = old_std
         return {"log2_mean": float(profile.exposure.log2_mean) + float(np.nanmean(m) - np.nanmean(s)),
                 "log2_std": float(std)}
 

@@ -52,11 +52,15 @@ def noise_prediction(profile, iso: float, level):
 
 def model_variance(profile, f, signal) -> np.ndarray:
     """Variance the profile predicts for file `f` at `signal` (4, B): its noise model (with the
-    level-function extension where it has one, `noise_extension.predicted_variance`) + rounding."""
+    level-function extension where it has one, `noise_extension.predicted_variance`) + rounding
+    + its banding (row and column offsets add their variance to every pixel, so once `banding` is
+    explained away its variance is not reported again as a noise-model discrepancy)."""
     from ...noise_extension import predicted_variance
 
+    effects = profile.effects
+    banding = float(effects.row_noise_std) ** 2 + float(effects.column_noise_std) ** 2
     return (predicted_variance(profile.noise, f["iso"], above_black(profile, f, signal))
-            + f["quantisation"][:, None])
+            + f["quantisation"][:, None] + banding)
 
 
 def above_black(profile, f, signal) -> np.ndarray:
