@@ -16,6 +16,12 @@ Sections (each in a fresh subprocess, so that its peak memory is its own):
              a subset and extrapolated).
 - convert:   `g2r-convert` end to end on a folder of PNGs (decode, convert, encode) against
              `published_numpy.py` writing the same DNGs, both as fresh processes.
+- noise, startup, mixed, training: noise on/off for uint8, float16 and float32 input; start-up
+             with and without the compilation cache; mixed sizes; synthesis inside a training step.
+- stages:    the per-image conditions (in fixed vmapped chunks as unprocess_batch runs them, and
+             image by image as it did before) against the pixels, timed apart.
+- capacity:  on an accelerator, the largest batch of frames `unprocess_batch` (noise on) runs in
+             one call, and frames/s at batch sizes up to it (skipped on a CPU).
 Timings are the best of a few repetitions (the median for the end-to-end runs is the single run).
 """
 
@@ -38,6 +44,7 @@ FULL = (3024, 4032)
 QUICK = (756, 1008)
 MIXED_BASE = (1512, 2016)          # the mixed-size section's largest frame (3 MP)
 BYTES_PER_PIXEL = 3 + 2            # uint8 RGB read, uint16 mosaic written
+MAX_CAPACITY_BATCH = 1024          # 12-MP frames: 36 GiB of uint8 input, 24 GiB of uint16 output
 
 
 def peak_rss_mib() -> float:
@@ -285,7 +292,7 @@ def _cpu_and_wall(function, repeats: int):
 
 
 def section_noise(args) -> dict:
-    """Noise on vs off and uint8 vs float32 input, one profile and option set, side by side:
+    """Noise on vs off and uint8 vs float16 vs float32 input, one profile and option set, side by side:
     `unprocess_batch` under jit (what g2r-convert runs), inputs already on the device."""
     import jax
     import jax.numpy as jnp
@@ -296,7 +303,8 @@ def section_noise(args) -> dict:
     height, width = args.size
     profile = load_profile(args.profile)
     codes = np.stack([test_image(height, width, seed) for seed in range(args.batch)])
-    inputs = {"uint8": jnp.asarray(codes), "float32": jnp.asarray(codes.astype(np.float32) / np.float32(255))}
+    inputs = {"uint8": jnp.asarray(codes), "float16": jnp.asarray(codes.astype(np.float16) / np.float16(255)),
+              "float32": jnp.asarray(codes.astype(np.float32) / np.float32(255))}
     keys = jax.random.split(jax.random.PRNGKey(0), args.batch)
     results = {"batch": args.batch, "profile": args.profile, "device": str(jax.devices()[0].device_kind)}
     for _ in range(2):          # two passes, interleaved: the best of each is kept
@@ -372,6 +380,87 @@ def section_mixed(args) -> dict:
             "mixed11_seconds": min(_timed(g2r(mixed)) for _ in range(2))}
 
 
+def _out_of_memory(error: Exception) -> bool:
+    text = str(error)
+    return "RESOURCE_EXHAUSTED" in text or "out of memory" in text.lower()
+
+
+def section_capacity(args) -> dict:
+    """On an accelerator: batches of uint8 frames through `unprocess_batch` (noise on, inputs on the
+    device), doubled from 4 until the device runs out of memory or MAX_CAPACITY_BATCH is
+    reached; frames/s at each, and the device's peak memory. Skipped on a CPU (host memory, not
+    the program, is the limit there)."""
+    import jax
+    import jax.numpy as jnp
+
+    from g2r_jax.profile import load_profile
+    from g2r_jax.unprocess import unprocess_batch
+
+    device = jax.devices()[0]
+    if device.platform == "cpu":
+        return {"skipped": "cpu"}
+    height, width = args.size
+    profile = load_profile(args.profile)
+    frame = jnp.asarray(test_image(height, width))
+    function = jax.jit(lambda k, im: unprocess_batch(k, im, profile, noise=True)[0])
+    results = {"device": str(device.device_kind), "profile": args.profile, "batches": {}}
+    batch = 4
+    while batch <= MAX_CAPACITY_BATCH:
+        try:
+            images = jnp.broadcast_to(frame, (batch,) + frame.shape).copy()
+            keys = jax.random.split(jax.random.PRNGKey(batch), batch)
+            function(keys, images).block_until_ready()
+            seconds = best_of(lambda: function(keys, images).block_until_ready(), args.repeats)
+        except Exception as error:   # noqa: BLE001 - the device's out-of-memory error ends the search
+            if not _out_of_memory(error):
+                raise
+            results["out_of_memory_at"] = batch
+            break
+        finally:
+            images = None
+        results["batches"][batch] = {"seconds_per_batch": seconds, "frames_per_s": batch / seconds}
+        results["largest_batch"] = batch
+        batch *= 2
+    stats = device.memory_stats() or {}
+    results["device_memory_MiB"] = stats.get("bytes_limit", 0) / 2**20
+    results["device_peak_MiB"] = stats.get("peak_bytes_in_use", 0) / 2**20
+    return results
+
+
+def section_stages(args) -> dict:
+    """Where `unprocess_batch`'s time goes: the per-image conditions (`sample_conditions`: no pixels)
+    as it runs them (`batch_conditions`: vmapped in fixed chunks), as it ran them before (`lax.map`,
+    one image at a time), and the pixels (`render_mosaic` vmapped, noise on) from precomputed
+    conditions; at the batch size and, on an accelerator, at 64."""
+    import jax
+    import jax.numpy as jnp
+
+    from g2r_jax.profile import load_profile
+    from g2r_jax.unprocess import batch_conditions, render_mosaic, sample_conditions
+
+    device = jax.devices()[0]
+    height, width = args.size
+    profile = load_profile(args.profile)
+    frame = jnp.asarray(test_image(height, width))
+    condition = lambda key: sample_conditions(key, profile)
+    looped = jax.jit(lambda keys: jax.lax.map(condition, keys))
+    chunked = jax.jit(lambda keys: batch_conditions(keys, profile))
+    pixels = jax.jit(jax.vmap(lambda image, c: render_mosaic(image, c, profile, noise=True)))
+    results = {"device": str(device.device_kind), "profile": args.profile, "batches": {}}
+    for batch in sorted({args.batch} | ({64} if device.platform != "cpu" else set())):
+        keys = jax.random.split(jax.random.PRNGKey(1), batch)
+        images = jnp.broadcast_to(frame, (batch,) + frame.shape).copy()
+        conditions = looped(keys)
+        entry = {}
+        for name, function, argument in (("conditions_lax_map", looped, (keys,)), ("conditions_chunked", chunked, (keys,)),
+                                         ("pixels_vmap", pixels, (images, conditions))):
+            jax.block_until_ready(function(*argument))
+            seconds = best_of(lambda: jax.block_until_ready(function(*argument)), args.repeats)
+            entry[name] = {"ms_per_frame": 1e3 * seconds / batch}
+        results["batches"][batch] = entry
+    return results
+
+
 def section_training(args) -> dict:
     """benchmarks/train_denoiser_example.py: share of a training step spent synthesising."""
     output = Path(args.workdir) / "training.json"
@@ -382,7 +471,8 @@ def section_training(args) -> dict:
 
 SECTIONS = {"bandwidth": section_bandwidth, "numpy": section_numpy, "jax": section_jax,
             "sampling": section_sampling, "convert": section_convert, "noise": section_noise,
-            "startup": section_startup, "mixed": section_mixed, "training": section_training}
+            "startup": section_startup, "mixed": section_mixed, "training": section_training,
+            "capacity": section_capacity, "stages": section_stages}
 
 
 # ----------------------------------------------------------------------------- driver
@@ -466,7 +556,9 @@ def report(results: dict, args) -> str:
     if noise:
         lines.append(f"noise on vs off, unprocess_batch under jit, batch {noise['batch']}, profile {noise['profile']} "
                      f"(ms/frame wall best-of, CPU ms/frame):")
-        for dtype in ("uint8", "float32"):
+        for dtype in ("uint8", "float16", "float32"):
+            if f"{dtype}_noise_off" not in noise:
+                continue
             off, on = noise[f"{dtype}_noise_off"], noise[f"{dtype}_noise_on"]
             lines.append(f"  {dtype:7s} off {off['wall_ms_per_frame']:6.1f} wall {off['cpu_ms_per_frame']:6.1f} CPU | "
                          f"on {on['wall_ms_per_frame']:6.1f} wall {on['cpu_ms_per_frame']:6.1f} CPU | noise costs "
@@ -485,6 +577,31 @@ def report(results: dict, args) -> str:
         lines.append(f"mixed sizes (up to {mixed['size'][0]}x{mixed['size'][1]}, no compile cache): 11 PNGs of 11 sizes "
                      f"{mixed['mixed11_seconds']:.1f} s vs 12 PNGs of one size {mixed['uniform12_seconds']:.1f} s "
                      f"({mixed['mixed11_seconds'] / mixed['uniform12_seconds']:.2f}x)")
+    capacity = results.get("capacity")
+    if capacity and "skipped" not in capacity:
+        lines.append(f"capacity on {capacity['device']} ({capacity['device_memory_MiB'] / 1024:.0f} GiB usable), "
+                     f"unprocess_batch noise on, uint8: largest batch {capacity.get('largest_batch')} "
+                     + (f"(out of memory at {capacity['out_of_memory_at']})" if "out_of_memory_at" in capacity
+                        else f"(search stopped at {MAX_CAPACITY_BATCH})")
+                     + f", device peak {capacity['device_peak_MiB'] / 1024:.1f} GiB")
+        for batch, entry in capacity["batches"].items():
+            text = f"  batch {int(batch):5d}: {entry['frames_per_s']:8.1f} frames/s"
+            if bandwidth:
+                traffic = entry["frames_per_s"] * height * width * BYTES_PER_PIXEL / 1e9
+                text += f", {traffic:.0f} GB/s = {100 * traffic / bandwidth['bandwidth_GBps']:.1f}% of bandwidth"
+            lines.append(text)
+    stages = results.get("stages")
+    if stages:
+        lines.append(f"stages of unprocess_batch on {stages['device']} (ms/frame): conditions image by image (lax.map) | "
+                     f"in vmapped chunks (batch_conditions) | pixels (vmap, noise on)")
+        for batch, entry in stages["batches"].items():
+            pixel_ms = entry["pixels_vmap"]["ms_per_frame"]
+            text = (f"  batch {int(batch):4d}: {entry['conditions_lax_map']['ms_per_frame']:7.2f} | "
+                    f"{entry['conditions_chunked']['ms_per_frame']:7.2f} | {pixel_ms:7.2f}")
+            if bandwidth:
+                traffic = height * width * BYTES_PER_PIXEL / (pixel_ms * 1e-3) / 1e9
+                text += f"  (pixels alone: {traffic:.0f} GB/s = {100 * traffic / bandwidth['bandwidth_GBps']:.1f}% of bandwidth)"
+            lines.append(text)
     training = results.get("training")
     if training:
         lines.append(f"training step ({training['batch']} crops {training['crop']}x{training['crop']}, {training['device']}): "

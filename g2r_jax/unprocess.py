@@ -256,9 +256,12 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     noise_read (4,) (normalised units per tile position), converged (white-point solve).
     """
     _check_image(image)
-    # Steps 2-4: illuminant, white point, colour transform (and the other per-image draws).
-    conditions = sample_conditions(key, profile, neutral=neutral, iso=iso, exposure_gain=exposure_gain,
-                                   recipe=recipe, colour=colour)
+    # Steps 2-4: illuminant, white point, colour transform (and the other per-image draws), by the
+    # same compiled program as in `unprocess_batch` (so both give the same bytes).
+    conditions = jax.tree_util.tree_map(
+        lambda x: x[0], batch_conditions(jnp.asarray(key)[None], profile,
+                                         neutral=None if neutral is None else jnp.asarray(neutral)[None],
+                                         iso=iso, exposure_gain=exposure_gain, recipe=recipe, colour=colour))
     # Steps 1, 5-7: decode, un-white-balance and mosaic, sensor, levels.
     mosaic = render_mosaic(image, conditions, profile, transfer=transfer, noise=noise, effects=effects,
                            highlight_safe=highlight_safe, recipe=recipe, quantize=quantize, lens_gain=lens_gain,
@@ -271,10 +274,9 @@ def unprocess_batch(keys, images, profile, *, neutral=None, iso=None, exposure_g
     """`unprocess` over a batch (B, H, W, 3) with keys (B, ...), same results image by image
     whatever the batch size or an image's place in it.
 
-    The per-image conditions (illuminant, white point, 3x3 matrices) run as a loop over images
-    (`lax.map`), each step compiled for one image: small matrix products compiled for a batch
-    round differently with the batch size, which would make bytes depend on how files were
-    batched or sharded. The pixels, element-wise, are vmapped. `neutral` is None or (B, 3);
+    The per-image conditions (illuminant, white point, 3x3 matrices) come from
+    `batch_conditions` (chunks of a fixed size, so bytes do not depend on how files were batched
+    or sharded); the pixels, element-wise, are vmapped. `neutral` is None or (B, 3);
     `iso` and `exposure_gain` are None or shared scalars; `valid_shapes` None or (B, 2) int32
     (h, w) of images zero-padded at the bottom/right to a common shape (each image's top-left
     h x w is then bit for bit its unpadded conversion: how `g2r-convert` batches mixed sizes);
@@ -282,18 +284,49 @@ def unprocess_batch(keys, images, profile, *, neutral=None, iso=None, exposure_g
     `(mosaics, clean_mosaics, metadata)`).
     """
     _check_image(images, ndim=4)
-
-    def conditions_of(args):
-        key, row = args
-        return sample_conditions(key, profile, neutral=row, iso=iso, exposure_gain=exposure_gain, recipe=recipe,
-                                 colour=colour)
-
-    conditions = jax.lax.map(conditions_of, (keys, neutral))
+    conditions = batch_conditions(keys, profile, neutral=neutral, iso=iso, exposure_gain=exposure_gain,
+                                  recipe=recipe, colour=colour)
     render = lambda image, c, shape: render_mosaic(image, c, profile, recipe=recipe, colour=colour,
                                                    valid_shape=shape, **render_options)
     mosaics = jax.vmap(render)(images, conditions, valid_shapes)
     metadata = _metadata(conditions, colour)
     return (*mosaics, metadata) if render_options.get("return_clean") else (mosaics, metadata)
+
+
+CONDITIONS_CHUNK = 32
+
+
+def batch_conditions(keys, profile, *, neutral=None, iso=None, exposure_gain=None, recipe: str = "dng",
+                     colour: str = "matrix"):
+    """`sample_conditions` for a batch of keys (B, ...), `neutral` None or (B, 3): vmapped over
+    chunks of CONDITIONS_CHUNK images (the last one padded with copies of the first key), the
+    chunks in a loop (`lax.map`).
+
+    Every image goes through one compiled program of one fixed shape, whatever B and wherever the
+    image sits in the batch, so its conditions (and the bytes of its mosaic) do not depend on the
+    batch: small matrix products compiled for different batch sizes round differently (on the
+    CPU the 3x3 colour transform vmapped over 5 or more images differs in the last bit from the
+    same transform for one image). Vmapped, the white-point bisection's loop runs once per chunk:
+    as a loop over single images it cost 2.3-3.3 ms per image on an H100 (a device round trip per
+    bisection step), 30 times the pixels of a 12-MP frame; on a CPU a chunk costs ~2 ms.
+    """
+    keys = jnp.asarray(keys)
+    count = keys.shape[0]
+    padded = -(-count // CONDITIONS_CHUNK) * CONDITIONS_CHUNK
+
+    def chunks(x):
+        x = jnp.asarray(x)
+        if padded > count:
+            x = jnp.concatenate([x, jnp.broadcast_to(x[:1], (padded - count,) + x.shape[1:])])
+        return x.reshape((padded // CONDITIONS_CHUNK, CONDITIONS_CHUNK) + x.shape[1:])
+
+    def one(args):
+        key, row = args
+        return sample_conditions(key, profile, neutral=row, iso=iso, exposure_gain=exposure_gain, recipe=recipe,
+                                 colour=colour)
+
+    out = jax.lax.map(jax.vmap(one), (chunks(keys), None if neutral is None else chunks(neutral)))
+    return jax.tree_util.tree_map(lambda x: x.reshape((padded,) + x.shape[2:])[:count], out)
 
 
 def image_key(seed: int, index: int):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import shutil
 
 import numpy as np
@@ -189,3 +190,14 @@ def test_lens_shading_option_divides_by_the_written_opcode_gain(tmp_path, capsys
     assert gain.max() > 1.5  # the corners really were darkened
     assert convert(common + ["-o", str(tmp_path / "x"), "--lens-shading", "--profile", "Canon600D"]) == 2
     assert "no lens-shading opcodes" in capsys.readouterr().err
+
+
+def test_commands_request_deterministic_gpu_ops_and_keep_a_user_choice(monkeypatch):
+    from g2r_jax import deterministic
+
+    monkeypatch.setenv("XLA_FLAGS", "--xla_dump_to=/tmp/x")
+    assert deterministic.request_deterministic_gpu_ops()
+    assert os.environ["XLA_FLAGS"] == "--xla_dump_to=/tmp/x --xla_gpu_deterministic_ops=true"
+    monkeypatch.setenv("XLA_FLAGS", "--xla_gpu_deterministic_ops=false")
+    assert not deterministic.request_deterministic_gpu_ops()
+    assert os.environ["XLA_FLAGS"] == "--xla_gpu_deterministic_ops=false"

@@ -92,11 +92,15 @@ def run_command(name: str, body, argv, parser) -> int:
     """Parse `argv`, run `body(args)`; print 'name: error: message' on failure (exit 2),
     or the traceback too with --debug. `body` returns the exit code. Every command gets
     `--no-compile-cache`; without it JAX's persistent compilation cache is on
-    (`g2r_jax.compile_cache`)."""
+    (`g2r_jax.compile_cache`). XLA's deterministic GPU operations are requested
+    (`g2r_jax.deterministic`)."""
     parser.add_argument("--no-compile-cache", action="store_true",
                         help="do not use the on-disk compilation cache (default location "
                              "~/.cache/g2r_jax/jax, or $G2R_JAX_CACHE_DIR)")
     args = parser.parse_args(argv)
+    from ..deterministic import request_deterministic_gpu_ops
+
+    request_deterministic_gpu_ops()
     if not args.no_compile_cache:
         from ..compile_cache import enable
 
