@@ -81,7 +81,7 @@ def log_ratio(profile, f, half: str):
     return L, np.maximum(se, 1e-3), np.where(usable, e.signal, np.nan)
 
 
-def combined(profile, f):
+def combined(profile, f, min_blocks: int | None = None):
     """Both halves of a file's tiles together: (L, se, signal) per (position, bin), for the
     closed-form test. Texture that escapes the estimator's rejection biases a bin's estimate by
     an amount that depends on the few textured blocks kept, so it differs between scenes and
@@ -97,7 +97,7 @@ def combined(profile, f):
         (la, sa, _), (lb, sb, _) = log_ratio(profile, f, "A"), log_ratio(profile, f, "B")
         tau2 = np.maximum(np.nan_to_num((la - lb) ** 2 - sa**2 - sb**2) / 2, 0.0)
         se = np.sqrt(se**2 + tau2 / 2)
-    reliable = counts >= RELIABLE_BLOCKS
+    reliable = counts >= (RELIABLE_BLOCKS if min_blocks is None else min_blocks)
     return np.where(reliable, L, np.nan), np.where(reliable, se, np.nan), np.where(reliable, signal, np.nan)
 
 
@@ -143,13 +143,19 @@ def corrected(profile, files, simulated, half="all", bias=None):
     bias on simulated files; bins without a simulated counterpart keep the closed form only when
     they hold RELIABLE_BLOCKS blocks."""
     bias = estimator_bias(profile, simulated) if bias is None else bias
-    L, se, signal = pooled([combined(profile, f) if half == "all" else log_ratio(profile, f, half) for f in files])
+    # the block count that makes a bin reliable is judged on all files together: large sets
+    # measure fewer tiles per file, and a per-file threshold dropped the GoPro frame's highlight
+    # bins from a set of 24 copies of it
+    L, se, signal = pooled([combined(profile, f, min_blocks=0) if half == "all" else log_ratio(profile, f, half)
+                            for f in files])
     counts = sum(np.asarray(f["nlf"][half].counts) for f in files)
     if bias is not None:
         b, b_se = bias
         has = np.isfinite(b)
         L = np.where(has, L - np.nan_to_num(b), np.where(counts >= RELIABLE_BLOCKS, L, np.nan))
         se = np.where(has, np.sqrt(se**2 + np.nan_to_num(b_se) ** 2), se)
+    elif half == "all":
+        L = np.where(counts >= RELIABLE_BLOCKS, L, np.nan)
     return L, se, signal, counts
 
 
