@@ -87,7 +87,8 @@ def combined(profile, f, min_blocks: int | None = None):
     an amount that depends on the few textured blocks kept, so it differs between scenes and
     regions and the bootstrap interval (over the kept blocks) does not show it: on clean
     dead-leaves files of 1000 x 1500 some bins read x0.6 or x1.2 at |z| > 7. Two safeguards:
-    only bins of at least RELIABLE_BLOCKS kept blocks, and the standard error widened by that
+    only bins of at least `min_blocks` kept blocks (default RELIABLE_BLOCKS; `corrected` passes 0
+    and applies the threshold to the files' pooled count), and the standard error widened by that
     random effect as the two halves' disagreement shows it (halves A and B see different
     objects of the scene: tau^2 = ((L_A - L_B)^2 - se_A^2 - se_B^2) / 2, method of moments as
     DerSimonian & Laird 1986, and the mean of both halves carries tau^2 / 2)."""
