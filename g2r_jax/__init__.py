@@ -49,6 +49,15 @@ class _Package(types.ModuleType):
 sys.modules[__name__].__class__ = _Package
 
 
+def _prefer_wide_cpu_vectors():
+    from .cpu_vectors import prefer_wide_vectors
+
+    prefer_wide_vectors()
+
+
+_prefer_wide_cpu_vectors()
+
+
 def diagnose(*args, **kwargs):
     """Measured DNGs vs the profile's simulation: see `g2r_jax.audit.diagnose`."""
     from .audit import diagnose as _diagnose

@@ -38,10 +38,18 @@ _ROBERTSON = np.asarray(DATA_ISOTEMPERATURE_LINES_ROBERTSON1968, dtype=np.float6
 _SDK_TINT_SCALE = -3000.0   # Adobe DNG SDK dng_temperature.cpp kTintScale
 
 
+def _power(base, exponent: float):
+    """base ** exponent for base >= 0, as exp(exponent * ln base). XLA's CPU `pow` runs per element
+    (scalar); exp and log are emitted as vectorised polynomials. Measured on 12-MP float32 frames:
+    the sRGB decode 176 -> 54 ms per frame on 2 cores, relative error 7e-7 against float64 (pow's:
+    3e-7), far below the 14-bit output's 6e-5."""
+    return jnp.exp(exponent * jnp.log(base))
+
+
 def srgb_to_linear(encoded):
     """sRGB EOTF (IEC 61966-2-1:1999, eq. for R'G'B' -> RGB): exact piecewise curve."""
     encoded = jnp.asarray(encoded)
-    power = ((jnp.maximum(encoded, _SRGB_THRESHOLD) + _SRGB_OFFSET) / (1 + _SRGB_OFFSET)) ** _SRGB_EXPONENT
+    power = _power((jnp.maximum(encoded, _SRGB_THRESHOLD) + _SRGB_OFFSET) / (1 + _SRGB_OFFSET), _SRGB_EXPONENT)
     return jnp.where(encoded <= _SRGB_THRESHOLD, encoded / _SRGB_LINEAR_SLOPE, power)
 
 
@@ -49,13 +57,13 @@ def linear_to_srgb(linear):
     """Inverse sRGB EOTF (IEC 61966-2-1:1999)."""
     linear = jnp.asarray(linear)
     threshold = _SRGB_THRESHOLD / _SRGB_LINEAR_SLOPE
-    power = (1 + _SRGB_OFFSET) * jnp.maximum(linear, threshold) ** (1 / _SRGB_EXPONENT) - _SRGB_OFFSET
+    power = (1 + _SRGB_OFFSET) * _power(jnp.maximum(linear, threshold), 1 / _SRGB_EXPONENT) - _SRGB_OFFSET
     return jnp.where(linear <= threshold, linear * _SRGB_LINEAR_SLOPE, power)
 
 
 def gamma_to_linear(encoded, gamma: float = 2.2):
     """Plain power-law decoding, the published Graphics2RAW code's choice (gamma 2.2)."""
-    return jnp.maximum(jnp.asarray(encoded), 0.0) ** gamma
+    return _power(jnp.maximum(jnp.asarray(encoded), 0.0), gamma)
 
 
 def decode_to_linear(encoded, transfer: str):
@@ -70,9 +78,12 @@ def decode_to_linear(encoded, transfer: str):
 
 
 def srgb_decode_lut(transfer: str = "srgb", dtype=np.float32) -> np.ndarray:
-    """256-entry look-up table decoding 8-bit codes with `transfer` (exact at every code)."""
+    """256-entry look-up table decoding 8-bit codes with `transfer` (computed in float64, then
+    rounded to `dtype`)."""
+    from ._x64 import enable_x64
+
     codes = np.arange(256, dtype=np.float64) / 255.0
-    with jax.ensure_compile_time_eval():
+    with jax.ensure_compile_time_eval(), enable_x64():
         return np.asarray(decode_to_linear(codes, transfer), dtype=dtype)
 
 
