@@ -510,10 +510,25 @@ def run_section(name, argv) -> dict:
     return json.loads(completed.stdout.strip().splitlines()[-1])
 
 
+def _cpu_vector_width() -> str:
+    """The XLA CPU vector width the sections ran with (each section imports g2r_jax, which
+    chooses it: `g2r_jax.cpu_vectors`)."""
+    import re
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from g2r_jax import cpu_vectors
+
+    flags = os.environ.get("XLA_FLAGS", "")
+    chosen = re.search(r"xla_cpu_prefer_vector_width=(\d+)", flags)
+    width = chosen.group(1) if chosen else os.environ.get(cpu_vectors.OPT_OUT) or (
+        "512" if cpu_vectors.cpu_has_avx512() else "256 (XLA's default)")
+    return f"XLA CPU vectors {width} bits"
+
+
 def report(results: dict, args) -> str:
     height, width = args.size
     lines = [f"g2r_jax throughput, {height}x{width} frames ({height * width / 1e6:.1f} MP), "
-             f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPU(s)"]
+             f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPU(s), {_cpu_vector_width()}"]
     bandwidth = results.get("bandwidth")
     if bandwidth:
         lines.append(f"memory bandwidth (copy, read+write): numpy {bandwidth['numpy_copy_GBps']:.1f} GB/s, "
@@ -565,7 +580,7 @@ def report(results: dict, args) -> str:
                          f"{on['wall_ms_per_frame'] / off['wall_ms_per_frame']:.2f}x wall, "
                          f"{on['cpu_ms_per_frame'] / off['cpu_ms_per_frame']:.2f}x CPU")
         lines.append(f"  float32 input costs {noise['float32_noise_off']['cpu_ms_per_frame'] / noise['uint8_noise_off']['cpu_ms_per_frame']:.2f}x "
-                     f"uint8 (noise off, CPU): sRGB decode by pow() per channel instead of a 256-entry table, 12 bytes/pixel read")
+                     f"uint8 (noise off, CPU): the sRGB curve computed (exp and log) instead of a 256-entry table, 12 bytes/pixel read instead of 3")
     startup = results.get("startup")
     if startup:
         lines.append(f"g2r-convert, 8 PNGs: cold cache {startup['cold_cache_seconds']:.1f} s, warm cache "
