@@ -161,7 +161,7 @@ def test_refit_recovers_a_hidden_matrix_and_round_trips(tmp_path):
 
 # --------------------------------------------------------------------------------------- audit
 
-def test_audit_finds_a_hidden_colour_matrix_error():
+def test_audit_finds_a_hidden_colour_matrix_error(tmp_path):
     rng = np.random.default_rng(11)
     profile = single_matrix_profile()
     truth = perturbed(profile, rng)
@@ -174,6 +174,14 @@ def test_audit_finds_a_hidden_colour_matrix_error():
     assert extended.info.calibration_illuminants == (17, 21)
     assert F.summarise(F.colour_model_errors(extended.colour, charts))["chromatic_mean"] < 1.0
     assert "colour_matrix" in report["vocabulary"]
+    plot = top["plot"]                 # the report's case: per patch, before and held-out after
+    assert plot["kind"] == "patches" and len(plot["labels"]) == len(plot["before"]) == len(plot["after"]) == 24
+    assert np.nanmean(np.asarray(plot["after"])[C.CHROMATIC]) < 0.5 * np.nanmean(np.asarray(plot["before"])[C.CHROMATIC])
+    from g2r_jax.audit.report import write_html
+
+    page = write_html(report, tmp_path / "html")
+    assert (tmp_path / "html" / "finding_0_colour_matrix.png").stat().st_size > 1000
+    assert "finding_0_colour_matrix.png" in page.read_text()
 
 
 def test_audit_finds_nothing_on_clean_charts():

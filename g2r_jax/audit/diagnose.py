@@ -243,6 +243,7 @@ def _explain_with_charts(chart_causes, profile, charts, threshold, folds, n_perm
         say(f"cross-validating the {cause.name} extension on chart images")
         top["gain"] = cause.cross_validate(charts, extended, folds=folds, seed=seed)
         top["kept"] = top["gain"]["after"] < top["gain"]["before"]
+        top["plot"] = cause.chart_plot(top)
         if top["kept"]:
             top["params"] = cause.fit(charts, None, extended, seed=seed)
             extended = cause.apply(extended, top["params"])

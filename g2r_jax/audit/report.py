@@ -179,6 +179,23 @@ def _neutral_plot(ax, data):
     ax.legend(fontsize=7)
 
 
+def _patch_plot(ax, data):
+    """Per chart patch: the profile's error and, when cross-validated, the refit's on held-out images."""
+    before = np.asarray(data["before"], np.float64)
+    x = np.arange(before.size)
+    after = data.get("after")
+    width = 0.4 if after is not None else 0.8
+    ax.bar(x - (width / 2 if after is not None else 0), before, width, color="0.6", label="profile's colour model")
+    if after is not None:
+        ax.bar(x + width / 2, np.asarray(after, np.float64), width, color="tab:blue",
+               label="refitted colour model, held-out images")
+    ax.set_xticks(x)
+    ax.set_xticklabels(data.get("labels") or [str(j + 1) for j in x], rotation=70, ha="right", fontsize=7)
+    ax.set_ylabel(data.get("unit", "deg"), fontsize=8)
+    ax.set_title(data.get("title", ""), fontsize=9)
+    ax.legend(fontsize=7)
+
+
 def _plot_finding(finding, path) -> bool:
     data = finding.get("plot")
     if not data:
@@ -188,7 +205,7 @@ def _plot_finding(finding, path) -> bool:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 4.2))
-    {"nlf": _nlf_plot, "strip": _strip_plot, "neutrals": _neutral_plot}[data["kind"]](ax, data)
+    {"nlf": _nlf_plot, "strip": _strip_plot, "neutrals": _neutral_plot, "patches": _patch_plot}[data["kind"]](ax, data)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)

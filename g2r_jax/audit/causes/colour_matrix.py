@@ -88,6 +88,17 @@ class ColourMatrix(Cause):
                 "difference": np.nan_to_num(result["difference"]).tolist(),
                 "patch_median_deg": summary["patch_median"]}
 
+    def chart_plot(self, finding: dict) -> dict:
+        """Plot data for the report: per patch, the median angular error over images of the
+        profile's colour model and, when the refit was cross-validated, of the refitted pair on
+        held-out images (`cross_validate`'s per-patch medians)."""
+        gain = finding.get("gain") or {}
+        return {"kind": "patches", "labels": list(_charts.PATCH_NAMES),
+                "before": list(finding.get("patch_median_deg") or gain.get("patch_median_before") or []),
+                "after": gain.get("patch_median_after"),
+                "unit": "raw RGB angular error (deg), median over images",
+                "title": f"{self.name}: measured chart patches against the colour model's prediction"}
+
     def fit(self, measured, simulated, profile, *, seed: int = 0) -> dict:
         start = colour_fit.as_pair(profile.colour, profile.info.calibration_illuminants)
         model, codes = colour_fit.refit_colour_matrices(start, measured)
