@@ -14,6 +14,7 @@ Default: demo and s20fe_night.
         [--workers 2] [--files 24] [--height 120 --width 180] [--sizes 120x180,200x300]
 
 Single files: `--files 1 --height 1000 --width 1500`; mixed sizes: `--sizes 120x180,200x300`.
+Measured charts instead of files (`colour_matrix`, issue 10): `--charts 30 --profile Canon600D`.
 
 The default size (120x180) keeps the default run (2 profiles x (9 causes + clean) x 5 seeds)
 near ten minutes on 2 cores; --height 200 --width 300 (the issue's size) takes about 2x longer.
@@ -75,6 +76,30 @@ def one_run(job):
             "gain": first["gain"] if first else None}
 
 
+def one_chart_run(job):
+    """`colour_matrix` on measured charts: `n_images` chart images of a camera whose D65 matrix
+    differs from the profile's by a random error of relative size U(0.04, 0.15)
+    (`synthetic.perturbed_colour`), or of the profile's own camera (clean), audited with
+    `diagnose(profile, charts=...)`. A detection counts when colour_matrix is named first and its
+    refit has a held-out gain."""
+    profile_name, cause, seed, n_images = job
+    from g2r_jax.audit import diagnose, synthetic
+
+    profile = synthetic.single_matrix_profile(load_base(profile_name))
+    rng = np.random.default_rng(2_000_003 * seed + 17)
+    magnitude = {"size": round(float(rng.uniform(0.04, 0.15)), 3)} if cause else {}
+    truth = synthetic.perturbed_colour(profile, rng, magnitude["size"]) if cause else profile
+    charts = synthetic.simulated_charts(truth, n_images, seed=30_000 + seed)
+    started = time.perf_counter()
+    report = diagnose(profile, charts=charts, n_permutations=1000, seed=seed)
+    found = [f for f in report["findings"] if f["significant"]]
+    first = found[0] if found else None
+    detected = bool(first and first["cause"] == cause and first.get("kept"))
+    return {"profile": profile_name, "cause": cause or "clean", "seed": seed, "magnitude": magnitude,
+            "time": time.perf_counter() - started, "detected": detected, "named": [f["cause"] for f in found],
+            "gain": first["gain"] if first else None}
+
+
 def _line(r):
     return (f"  {r['profile']:12s} {r['cause']:24s} seed {r['seed']:4d}  detected={r['detected']!s:5s} "
             f"named={r['named']} {r['time']:.1f}s {r['magnitude']}")
@@ -93,29 +118,38 @@ def main(argv=None):
                                                      "(mixed sizes; overrides --height/--width), e.g. 120x180,200x300")
     parser.add_argument("--causes", default="all", help="comma-separated causes, or 'all'")
     parser.add_argument("--clean-seeds", type=int, default=None, help="clean sets per profile (default: seeds)")
+    parser.add_argument("--charts", type=int, default=0,
+                        help="instead of DNG files: audit sets of this many chart images for colour_matrix "
+                             "(profiles reduced to their D65 matrix; e.g. --charts 30 --profile Canon600D)")
     args = parser.parse_args(argv)
-    from g2r_jax.audit.vocabulary import FILE_CAUSES as CAUSES   # hidden in DNG files
+    from g2r_jax.audit.vocabulary import FILE_CAUSES   # hidden in DNG files
 
     profiles = args.profile.split(",")
-    causes = list(CAUSES) if args.causes == "all" else args.causes.split(",")
+    causes = (["colour_matrix"] if args.charts else list(FILE_CAUSES)) if args.causes == "all" else args.causes.split(",")
     clean = args.clean_seeds if args.clean_seeds is not None else args.seeds
     sizes = [tuple(int(v) for v in size.split("x")) for size in args.sizes.split(",") if size]
     jobs = []
     for name in profiles:
-        jobs += [(name, c, s, args.files, args.height, args.width, sizes) for c in causes for s in range(args.seeds)]
-        jobs += [(name, None, 1000 + s, args.files, args.height, args.width, sizes) for s in range(clean)]
-    print(f"{len(jobs)} audits of {args.files} files of {args.sizes or f'{args.height}x{args.width}'} on {profiles}, "
-          f"{args.workers} worker(s)", flush=True)
+        if args.charts:
+            jobs += [(name, c, s, args.charts) for c in causes for s in range(args.seeds)]
+            jobs += [(name, None, 1000 + s, args.charts) for s in range(clean)]
+        else:
+            jobs += [(name, c, s, args.files, args.height, args.width, sizes) for c in causes for s in range(args.seeds)]
+            jobs += [(name, None, 1000 + s, args.files, args.height, args.width, sizes) for s in range(clean)]
+    what = (f"{args.charts} chart images" if args.charts else
+            f"{args.files} files of {args.sizes or f'{args.height}x{args.width}'}")
+    print(f"{len(jobs)} audits of {what} on {profiles}, {args.workers} worker(s)", flush=True)
+    run = one_chart_run if args.charts else one_run
     started = time.perf_counter()
     results = []
     if args.workers > 1:
         with ProcessPoolExecutor(args.workers) as pool:
-            for r in pool.map(one_run, jobs):
+            for r in pool.map(run, jobs):
                 results.append(r)
                 print(_line(r), flush=True)
     else:
         for job in jobs:
-            r = one_run(job)
+            r = run(job)
             results.append(r)
             print(_line(r), flush=True)
     wall = time.perf_counter() - started

@@ -10,7 +10,7 @@ import pytest
 
 from g2r_jax import charts as C
 from g2r_jax import colour_fit as F
-from g2r_jax.audit import diagnose
+from g2r_jax.audit import diagnose, synthetic
 from g2r_jax.dng import DngColourModel
 from g2r_jax.profile import load_profile, replace, save_profile
 
@@ -19,35 +19,16 @@ PROFILE = "profiles/Canon600D.json"
 
 def single_matrix_profile():
     """The Canon 600D profile reduced to its D65 matrix (a camera whose DNG carries one matrix)."""
-    import dataclasses
-
-    profile = load_profile(PROFILE)
-    model = DngColourModel.from_tags((21,), [np.asarray(profile.colour.color_matrix[1], np.float64)])
-    return dataclasses.replace(profile, colour=model, info=dataclasses.replace(profile.info, calibration_illuminants=(21,)))
+    return synthetic.single_matrix_profile(load_profile(PROFILE))
 
 
 def perturbed(profile, rng, size=0.12):
     """The profile with a matrix error drawn at random: CM -> (I + size * N(0, 1)) CM."""
-    matrix = np.asarray(profile.colour.color_matrix[0], np.float64)
-    error = np.eye(3) + size * rng.normal(size=(3, 3))
-    return replace(profile, colour=DngColourModel.from_tags((21,), [error @ matrix]))
+    return synthetic.perturbed_colour(profile, rng, size)
 
 
 def synthetic_charts(truth, n, seed, noise=0.01):
-    """Charts the camera `truth` records: unprocess_batch on the chart image with sampled neutrals,
-    1 % multiplicative noise per patch and channel, a few unusable (NaN) patches, 3 folds."""
-    import jax
-
-    from g2r_jax.illuminants import sample_neutrals
-
-    rng = np.random.default_rng(seed)
-    neutrals = np.asarray(sample_neutrals(jax.random.PRNGKey(seed), truth.illuminants, n), np.float64)
-    # the chart's physical colours (unclipped linear sRGB, as the audit predicts them) through unprocess
-    patches = F.simulate_patches(truth, neutrals, C.chart_linear_srgb(), transfer="linear")
-    patches = patches * (1 + noise * rng.normal(size=(n, 24, 3)))
-    patches[rng.random((n, 24)) < 0.03] = np.nan
-    return C.ChartSet([f"img{i:03d}" for i in range(n)], patches, neutrals / neutrals[:, 1:2],
-                      C.assign_folds(n, 3, seed), source="synthetic")
+    return synthetic.simulated_charts(truth, n, seed, noise)
 
 
 # ------------------------------------------------------------------------------------ format

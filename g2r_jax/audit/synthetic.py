@@ -135,3 +135,44 @@ def inject(profile: SensorProfile, cause: str, *, height: int = 200, width: int 
                                       None, "mixture", False, dtype)
         return _profile.replace(profile, illuminants=mixture)
     raise ValueError(f"unknown cause {cause!r}")
+
+
+# ----------------------------------------------------------------------------- colour charts
+
+def single_matrix_profile(profile: SensorProfile) -> SensorProfile:
+    """`profile` reduced to its D65 ColorMatrix (a camera whose DNG carries one matrix): the
+    profile under audit in the chart experiments (`colour_matrix`)."""
+    from ..colour_fit import with_colour
+
+    codes = list(profile.info.calibration_illuminants)
+    matrix = np.asarray(profile.colour.color_matrix[codes.index(21) if 21 in codes else -1], np.float64)
+    return with_colour(profile, DngColourModel.from_tags((21,), [matrix]), (21,))
+
+
+def perturbed_colour(profile: SensorProfile, rng, size: float = 0.12) -> SensorProfile:
+    """The camera a chart set is "measured" from: the profile's first ColorMatrix with an error
+    drawn at random, CM -> (I + size * N(0, 1)) CM, as its only (D65) matrix."""
+    from ..colour_fit import with_colour
+
+    matrix = np.asarray(profile.colour.color_matrix[0], np.float64)
+    error = np.eye(3) + size * rng.normal(size=(3, 3))
+    return with_colour(profile, DngColourModel.from_tags((21,), [error @ matrix]), (21,))
+
+
+def simulated_charts(truth: SensorProfile, n: int, seed: int, noise: float = 0.01):
+    """`n` ColorChecker images that the camera `truth` records (a `charts.ChartSet`):
+    `unprocess_batch` on the chart's physical colours (unclipped linear sRGB, as the audit
+    predicts them) with neutrals sampled from `truth`'s illuminant model, `noise` multiplicative
+    noise per patch and channel, 3 % unusable (NaN) patches, 3 folds."""
+    import jax
+
+    from .. import charts as _charts
+    from ..colour_fit import simulate_patches
+
+    rng = np.random.default_rng(seed)
+    neutrals = np.asarray(_illuminants.sample_neutrals(jax.random.PRNGKey(seed), truth.illuminants, n), np.float64)
+    patches = simulate_patches(truth, neutrals, _charts.chart_linear_srgb(), transfer="linear")
+    patches = patches * (1 + noise * rng.normal(size=(n, 24, 3)))
+    patches[rng.random((n, 24)) < 0.03] = np.nan
+    return _charts.ChartSet([f"img{i:03d}" for i in range(n)], patches, neutrals / neutrals[:, 1:2],
+                            _charts.assign_folds(n, 3, seed), source="synthetic")
