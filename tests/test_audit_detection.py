@@ -62,6 +62,34 @@ def test_clean_sets_false_alarms(seed, base):
     assert not significant(report), [(f["cause"], f["evidence"]) for f in significant(report)]
 
 
+def test_simulated_sizes_mirror_the_measured_mix():
+    from importlib import import_module
+
+    simulation_sizes = import_module("g2r_jax.audit.diagnose").simulation_sizes
+    mixed = [(120, 180)] * 8 + [(200, 300)] * 8 + [(160, 240)] * 8
+    assert sorted(simulation_sizes(mixed, 24)) == [((120, 180), 8), ((160, 240), 8), ((200, 300), 8)]
+    assert simulation_sizes([(120, 180)] * 5, 24) == [((120, 180), 24)]
+    (size, count), = simulation_sizes([(3000, 4000)], 24)           # scaled to SIMULATION_PIXELS, same aspect
+    assert count == 24 and size[0] * size[1] <= 240_000 and abs(size[1] / size[0] - 4 / 3) < 0.01
+    many = [(100 + 20 * k, 150 + 30 * k) for k in range(6) for _ in range(k + 1)]
+    shares = simulation_sizes(many, 24)
+    assert len(shares) == 4 and sum(c for _, c in shares) == 24 and shares[0][0] == (200, 300)
+
+
+@pytest.mark.parametrize("seed", [1002])
+def test_clean_mixed_size_set_has_no_finding(seed, base):
+    """Files of three sizes in one audit: a clean set that gave black_level when the simulated
+    files all had one size (the dark floor depends on the file's size)."""
+    from g2r_jax.audit import scenes, simulate
+
+    measured = []
+    for k, (h, w) in enumerate([(120, 180), (200, 300), (160, 240)]):
+        measured += simulate.simulate(base, scenes.scene_set(8, 10_000 + seed + 97 * k, h, w), 50_000 + seed + 97 * k)
+    report = diagnose(base, measured, seed=seed)
+    assert not significant(report), [(f["cause"], f["evidence"]) for f in significant(report)]
+    assert sorted(map(tuple, report["simulated_sizes"])) == [(120, 180, 8), (160, 240, 8), (200, 300, 8)]
+
+
 @pytest.mark.slow
 def test_two_effects_are_both_named(base):
     rng = np.random.default_rng(SEED + 7)

@@ -46,6 +46,22 @@ def test_max_t_permutation_calibrated_under_null_and_powerful_under_shift():
     assert shifted["p"] < 0.001
 
 
+def test_a_component_seen_in_few_files_does_not_swamp_the_max_t_null():
+    """The mixed-size night set whose early clipping was missed: red clips in 3 measured and 2
+    simulated files (repeated values, floor-sized SE), the greens in all 24 + 24 and 3.6 % low."""
+    rng = np.random.default_rng(5)
+    measured = np.full((24, 3), np.nan)
+    simulated = np.full((24, 3), np.nan)
+    measured[:, 1:] = 0.964 + 0.002 * rng.normal(size=(24, 2))
+    simulated[:, 1:] = 1.0
+    measured[:3, 0], simulated[:2, 0] = 0.964, 1.0
+    result = significance.max_t_permutation(measured, simulated, floor=3e-4, n_permutations=2000)
+    assert result["p"] < 0.001, result
+    assert abs(result["t"][0]) > 50          # red is still reported, outside the tested family
+    alone = significance.max_t_permutation(measured[:, :1], simulated[:, :1], floor=3e-4, n_permutations=2000)
+    assert alone["p"] == 1.0 and alone["score"] == 0.0                  # too few files: not tested at all
+
+
 def test_energy_test_matches_the_energy_distance():
     from g2r_jax.illuminants import energy_distance
 
@@ -54,6 +70,15 @@ def test_energy_test_matches_the_energy_distance():
     test = significance.energy_permutation(a, b, n_permutations=500)
     assert abs(test["energy"] - energy_distance(a, b)) < 1e-9
     assert test["p"] < 0.01
+
+
+def test_outliers_skip_plane_borders_and_find_interior_impulses():
+    rng = np.random.default_rng(2)
+    planes = (0.3 + 0.002 * rng.normal(size=(4, 40, 60))).astype(np.float32)
+    planes[1, 10, 20] = 0.9              # interior: mosaic row 2 * 10, col 2 * 20 + 1
+    planes[2, 0, 30] = planes[3, 39, 5] = planes[0, 17, 59] = 0.9   # plane borders
+    rows, cols, values = stats.outliers(planes, np.ones(4))
+    assert list(zip(rows.tolist(), cols.tolist())) == [(20, 41)] and np.allclose(values, 0.9)
 
 
 def test_consistent_outliers_needs_many_files():

@@ -32,20 +32,42 @@ def _welch_t(a, b, floor):
     return np.where((na >= 2) & (nb >= 2), t, 0.0), ma - mb
 
 
+MIN_POOLED_FILES = 10   # a component enters the maxT family only with this many files that have it
+
+
 def max_t_permutation(measured, simulated, *, floor=0.0, n_permutations: int = 2000, seed: int = 0) -> dict:
     """Permutation maxT test of equal means, component by component.
 
     **Arguments:** `measured` (n, k), `simulated` (m, k) per-file statistics (NaN = not
     available in that file); `floor`: resolution per component (scalar or (k,)).
 
+    The family is the components available in at least MIN_POOLED_FILES files of the two sets
+    together. That count does not change under permutation, so the test stays exact; a
+    component seen in a handful of files (say a colour that clips in 3 measured and 2 simulated
+    files) has a coarse, heavy-tailed permutation distribution of t (its SE is the floor when the
+    few values repeat), could not reach a small p-value alone (the most extreme split of 9 values
+    between 24 + 24 files has probability ~0.002), and would only swamp the maxT null of the
+    components that carry the evidence.
+
+    The components are put on one scale before the maximum: each |t| is divided by the 95th
+    percentile of that component's own permutation distribution (which depends on the pooled
+    files only, not on the labels, so the test stays a permutation test). Without it a
+    component whose null is wide (few, repeated values: a clip level seen in 5 + 5 files) sets the
+    null of the maximum, and the components that carry the evidence cannot reach a small p (the
+    same night set: p = 0.0035 with |t| = 62-82 in the greens). With comparable components this
+    changes little; it is the studentised-by-null alternative to single-step minP (Westfall &
+    Young 1993, ch. 2), which would need many more permutations for the same resolution.
+
     **Returns:** dict with `t` (k,), `difference` (k,) measured - simulated means, `p` (the
-    permutation p-value of max |t|, (1 + #{perm >= obs}) / (1 + B)) and `score` (max |t|).
+    permutation p-value of the largest scaled |t| over the family, (1 + #{perm >= obs}) / (1 + B))
+    and `score` (the largest |t| over the family, unscaled).
     """
     a = np.asarray(measured, np.float64)
     b = np.asarray(simulated, np.float64)
     floor = np.broadcast_to(np.asarray(floor, np.float64), a.shape[1:])
     t, difference = _welch_t(a, b, floor)
-    observed = np.max(np.abs(t))
+    family = (np.sum(np.isfinite(a), 0) + np.sum(np.isfinite(b), 0)) >= MIN_POOLED_FILES
+    score = float(np.max(np.abs(np.where(family, t, 0.0))))
     with np.errstate(invalid="ignore", divide="ignore"):
         import warnings
         with warnings.catch_warnings():
@@ -55,9 +77,14 @@ def max_t_permutation(measured, simulated, *, floor=0.0, n_permutations: int = 2
             order = np.argsort(rng.random((n_permutations, len(pooled))), axis=1)
             shuffled = pooled[order]
             t_perm, _ = _welch_t(shuffled[:, :len(a)], shuffled[:, len(a):], floor)
-    null = np.max(np.abs(np.nan_to_num(t_perm)), axis=-1)
+    null_t = np.abs(np.nan_to_num(np.where(family, t_perm, 0.0)))
+    scale = np.percentile(null_t, 95, axis=0)
+    usable = family & (scale > 0)
+    scale = np.where(usable, scale, 1.0)
+    observed = np.max(np.where(usable, np.abs(t) / scale, 0.0))
+    null = np.max(np.where(usable, null_t / scale, 0.0), axis=-1)
     p = (1 + np.sum(null >= observed)) / (1 + n_permutations)
-    return {"t": t, "difference": difference, "p": float(p), "score": float(observed)}
+    return {"t": t, "difference": difference, "p": float(p), "score": score}
 
 
 def energy_permutation(measured, reference, *, n_permutations: int = 1000, seed: int = 0) -> dict:
