@@ -2,7 +2,6 @@
 inverse-CDF transform against scipy's, and the statistics of the draws."""
 
 import numpy as np
-import pytest
 
 
 def test_mosaic_draws_are_the_flat_draws_padding_and_vmap_change_nothing():
