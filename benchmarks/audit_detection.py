@@ -67,7 +67,12 @@ def one_run(job):
             measured += simulate.simulate(truth, scenes.scene_set(count, 10_000 + seed + 97 * k, h, w), 50_000 + seed + 97 * k)
     started = time.perf_counter()
     report = diagnose(base, measured, seed=seed)
-    elapsed = time.perf_counter() - started
+    return _outcome(report, profile_name, cause, seed, magnitude, time.perf_counter() - started)
+
+
+def _outcome(report, profile_name, cause, seed, magnitude, elapsed) -> dict:
+    """One audit's line of the table: a detection is `cause` named first with its extension kept
+    (a positive held-out gain); for a clean set (`cause` None) any significant finding is an alarm."""
     found = [f for f in report["findings"] if f["significant"]]
     first = found[0] if found else None
     detected = bool(first and first["cause"] == cause and first.get("kept"))
@@ -92,12 +97,7 @@ def one_chart_run(job):
     charts = synthetic.simulated_charts(truth, n_images, seed=30_000 + seed)
     started = time.perf_counter()
     report = diagnose(profile, charts=charts, n_permutations=1000, seed=seed)
-    found = [f for f in report["findings"] if f["significant"]]
-    first = found[0] if found else None
-    detected = bool(first and first["cause"] == cause and first.get("kept"))
-    return {"profile": profile_name, "cause": cause or "clean", "seed": seed, "magnitude": magnitude,
-            "time": time.perf_counter() - started, "detected": detected, "named": [f["cause"] for f in found],
-            "gain": first["gain"] if first else None}
+    return _outcome(report, profile_name, cause, seed, magnitude, time.perf_counter() - started)
 
 
 def _line(r):

@@ -512,17 +512,11 @@ def run_section(name, argv) -> dict:
 
 def _cpu_vector_width() -> str:
     """The XLA CPU vector width the sections ran with (each section imports g2r_jax, which
-    chooses it: `g2r_jax.cpu_vectors`)."""
-    import re
-
+    chooses it: `g2r_jax.cpu_vectors.chosen_width`)."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from g2r_jax import cpu_vectors
+    from g2r_jax.cpu_vectors import chosen_width
 
-    flags = os.environ.get("XLA_FLAGS", "")
-    chosen = re.search(r"xla_cpu_prefer_vector_width=(\d+)", flags)
-    width = chosen.group(1) if chosen else os.environ.get(cpu_vectors.OPT_OUT) or (
-        "512" if cpu_vectors.cpu_has_avx512() else "256 (XLA's default)")
-    return f"XLA CPU vectors {width} bits"
+    return f"XLA CPU vectors {chosen_width() or '256 (XLA default)'} bits"
 
 
 def report(results: dict, args) -> str:

@@ -49,13 +49,9 @@ class _Package(types.ModuleType):
 sys.modules[__name__].__class__ = _Package
 
 
-def _prefer_wide_cpu_vectors():
-    from .cpu_vectors import prefer_wide_vectors
+from .cpu_vectors import prefer_wide_vectors as _prefer_wide_vectors  # noqa: E402  (before JAX starts)
 
-    prefer_wide_vectors()
-
-
-_prefer_wide_cpu_vectors()
+_prefer_wide_vectors()
 
 
 def diagnose(*args, **kwargs):

@@ -19,7 +19,9 @@ from __future__ import annotations
 import os
 import platform
 
-FLAG = "--xla_cpu_prefer_vector_width"
+from . import xla_flags
+
+NAME = "xla_cpu_prefer_vector_width"
 OPT_OUT = "G2R_JAX_CPU_VECTOR_WIDTH"
 
 
@@ -36,21 +38,23 @@ def cpu_has_avx512(cpuinfo: str | None = None) -> bool:
     return any(line.startswith("flags") and "avx512f" in line.split() for line in cpuinfo.splitlines())
 
 
-def prefer_wide_vectors(cpuinfo: str | None = None) -> bool:
-    """Add `--xla_cpu_prefer_vector_width=` to XLA_FLAGS (512, or the width in
-    $G2R_JAX_CPU_VECTOR_WIDTH) unless the user already chose one, or the CPU lacks AVX-512 and no
-    width was asked for. Returns whether XLA_FLAGS was changed."""
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_cpu_prefer_vector_width" in flags:
-        return False
+def chosen_width(cpuinfo: str | None = None) -> str | None:
+    """The vector width XLA gets: the user's `--xla_cpu_prefer_vector_width` in XLA_FLAGS, else
+    $G2R_JAX_CPU_VECTOR_WIDTH (128, 256 or 512), else 512 on an AVX-512 CPU, else None (XLA's
+    default, 256)."""
+    given = xla_flags.chosen(NAME)
+    if given is not None:
+        return given
     requested = os.environ.get(OPT_OUT, "").strip()
     if requested:
-        if requested not in ("128", "256", "512"):
-            return False
-        width = requested
-    elif cpu_has_avx512(cpuinfo):
-        width = "512"
-    else:
+        return requested if requested in ("128", "256", "512") else None
+    return "512" if cpu_has_avx512(cpuinfo) else None
+
+
+def prefer_wide_vectors(cpuinfo: str | None = None) -> bool:
+    """Add `--xla_cpu_prefer_vector_width=` (the `chosen_width`) to XLA_FLAGS unless the user
+    already chose one, or there is no width to ask for. Returns whether XLA_FLAGS was changed."""
+    if xla_flags.chosen(NAME) is not None:
         return False
-    os.environ["XLA_FLAGS"] = f"{flags} {FLAG}={width}".strip()
-    return True
+    width = chosen_width(cpuinfo)
+    return width is not None and xla_flags.add_flag(NAME, width)

@@ -12,17 +12,11 @@ converted in (as on a CPU, where programs are deterministic anyway); library use
 
 from __future__ import annotations
 
-import os
-
-FLAG = "--xla_gpu_deterministic_ops=true"
+from .xla_flags import add_flag
 
 
 def request_deterministic_gpu_ops() -> bool:
-    """Add FLAG to `XLA_FLAGS` unless the user already chose a value for it. XLA reads the variable
-    when JAX first starts a backend, so call this before any JAX computation. Returns whether the
-    flag was added."""
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_gpu_deterministic_ops" in flags:
-        return False
-    os.environ["XLA_FLAGS"] = f"{flags} {FLAG}".strip()
-    return True
+    """Add `--xla_gpu_deterministic_ops=true` to `XLA_FLAGS` unless the user already chose a
+    value for it (`xla_flags.add_flag`). Call this before any JAX computation. Returns whether
+    the flag was added."""
+    return add_flag("xla_gpu_deterministic_ops", "true")

@@ -22,13 +22,8 @@ def single_matrix_profile():
     return synthetic.single_matrix_profile(load_profile(PROFILE))
 
 
-def perturbed(profile, rng, size=0.12):
-    """The profile with a matrix error drawn at random: CM -> (I + size * N(0, 1)) CM."""
-    return synthetic.perturbed_colour(profile, rng, size)
-
-
-def synthetic_charts(truth, n, seed, noise=0.01):
-    return synthetic.simulated_charts(truth, n, seed, noise)
+perturbed = synthetic.perturbed_colour         # CM -> (I + size * N(0, 1)) CM, as the only (D65) matrix
+synthetic_charts = synthetic.simulated_charts  # charts that camera records (1 % noise, 3 % NaN, 3 folds)
 
 
 # ------------------------------------------------------------------------------------ format

@@ -160,6 +160,7 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
     else:
         scene_groups = [loading.load_scenes(scenes, n_sim, *sizes[0][0])]
     sizes = [(tuple(int(v) for v in group.shape[1:3]), len(group)) for group in scene_groups]
+    n_sim = sum(count for _, count in sizes)
 
     simulated_sets = {}   # a profile simulated before (the same extension fitted again) is not simulated twice
 
@@ -175,7 +176,7 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         simulated_sets[key] = (outliers, result)
         return result
 
-    say(f"simulating {sum(count for _, count in sizes)} files")
+    say(f"simulating {n_sim} files")
     simulated_stats = simulate_stats(profile)
     timing = {"statistics_s": time.perf_counter() - started}
 
@@ -240,7 +241,7 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
     return {
         "findings": findings, "unexplained": unexplained,
         "vocabulary": list(CAUSES), "alpha": alpha, "tests": tests, "threshold_p": threshold,
-        "n_measured": len(items), "n_simulated": sum(count for _, count in sizes), "seed": seed,
+        "n_measured": len(items), "n_simulated": n_sim, "seed": seed,
         **({"n_charts": chart_report["n_charts"], "charts": chart_report["charts"]} if chart_report else {}),
         "size": [int(v) for v in shapes[0]], "sizes": sorted({tuple(int(v) for v in s) for s in shapes}),
         "simulated_size": list(sizes[0][0]), "simulated_sizes": [[h, w, count] for (h, w), count in sizes],

@@ -51,12 +51,12 @@ def max_t_permutation(measured, simulated, *, floor=0.0, n_permutations: int = 2
 
     The components are put on one scale before the maximum: each |t| is divided by the 95th
     percentile of that component's own permutation distribution (which depends on the pooled
-    files only, not on the labels, so the test stays a permutation test). Without it a
-    component whose null is wide (few, repeated values: a clip level seen in 5 + 5 files) sets the
-    null of the maximum, and the components that carry the evidence cannot reach a small p (the
-    same night set: p = 0.0035 with |t| = 62-82 in the greens). With comparable components this
-    changes little; it is the studentised-by-null alternative to single-step minP (Westfall &
-    Young 1993, ch. 2), which would need many more permutations for the same resolution.
+    files only, not on the labels, so the test stays a permutation test), so that one wide null
+    (a clip level seen in 5 + 5 files, inside the family) no longer sets the null of the maximum
+    (a mixed-size night set: p = 0.0035 with |t| = 62-82 in the greens, 0.0005 scaled). With
+    comparable components this changes little; it is the studentised-by-null alternative to
+    single-step minP (Westfall & Young 1993, ch. 2), which needs many more permutations for the
+    same resolution.
 
     **Returns:** dict with `t` (k,), `difference` (k,) measured - simulated means, `p` (the
     permutation p-value of the largest scaled |t| over the family, (1 + #{perm >= obs}) / (1 + B))

@@ -318,8 +318,8 @@ def outliers(planes, clip, threshold: float = 0.12):
     rough = np.nonzero((low < planes - margin) | (high > planes + margin))
     del low, high
     inside = (rough[1] > 0) & (rough[1] < h - 1) & (rough[2] > 0) & (rough[2] < w - 1)
-    p_idx, r_idx, c_idx = (index[inside] for index in rough)
-    rough = (p_idx, r_idx, c_idx)
+    rough = tuple(index[inside] for index in rough)
+    p_idx, r_idx, c_idx = rough
     neighbours = np.stack([padded[p_idx, r_idx + 1 + dy, c_idx + 1 + dx] for dy, dx in shifts])
     centre = planes[rough]
     candidate = (np.sum(neighbours < centre - margin, axis=0) >= 4) | (np.sum(neighbours > centre + margin, axis=0) >= 4)
