@@ -24,12 +24,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from g2r_jax import charts as C  # noqa: E402
-from g2r_jax import colour_fit as F  # noqa: E402
+from g2r_jax.colour import charts as C  # noqa: E402
+from g2r_jax.colour import chart_fit as F  # noqa: E402
 
 
 def run(charts_path, profile_path, progress=print) -> dict:
-    from g2r_jax.profile import load_profile
+    from g2r_jax.profile.schema import load_profile
 
     charts = C.read_charts(charts_path)
     profile = load_profile(profile_path)

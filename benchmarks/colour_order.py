@@ -19,14 +19,14 @@ from PIL import Image
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent / "tests"))
 import conformance_colour as cc  # noqa: E402
 
-from g2r_jax import colour as gc  # noqa: E402
-from g2r_jax import dng  # noqa: E402
-from g2r_jax._x64 import enable_x64  # noqa: E402
+from g2r_jax.colour import conversions as gc  # noqa: E402
+from g2r_jax.colour import dng_model as dng  # noqa: E402
+from g2r_jax.runtime.x64 import enable_x64  # noqa: E402
 from g2r_jax.cli.convert import main as convert_main  # noqa: E402
 from g2r_jax.examples import colour_checker_srgb  # noqa: E402
-from g2r_jax.fit import fit_profile  # noqa: E402
+from g2r_jax.profile.fitting import fit_profile  # noqa: E402
 from g2r_jax.io.dng_read import read_dng_info  # noqa: E402
-from g2r_jax.profile import load_profile, save_profile  # noqa: E402
+from g2r_jax.profile.schema import load_profile, save_profile  # noqa: E402
 
 tmp = pathlib.Path(tempfile.mkdtemp())
 codes = np.round(colour_checker_srgb() * 255).astype(np.uint8)

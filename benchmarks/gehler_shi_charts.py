@@ -27,11 +27,11 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from g2r_jax.charts import ChartSet, write_charts  # noqa: E402
-from g2r_jax.fit import fit_profile  # noqa: E402
-from g2r_jax.illuminants import neutral_to_chromaticity  # noqa: E402
+from g2r_jax.colour.charts import ChartSet, write_charts  # noqa: E402
+from g2r_jax.profile.fitting import fit_profile  # noqa: E402
+from g2r_jax.illuminants.distributions import neutral_to_chromaticity  # noqa: E402
 from g2r_jax.io.dng_info import DngInfo  # noqa: E402
-from g2r_jax.profile import save_profile  # noqa: E402
+from g2r_jax.profile.schema import save_profile  # noqa: E402
 
 BLACK_5D = 129.0
 CAMERAS = {"5d": ("Canon EOS 5D", slice(86, 568), BLACK_5D), "1d": ("Canon EOS-1D", slice(0, 86), 0.0)}

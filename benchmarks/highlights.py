@@ -39,9 +39,9 @@ def boxes():
 
 
 def neutral_for(profile, cct: float) -> np.ndarray:
-    from g2r_jax import colour as gc
-    from g2r_jax import dng
-    from g2r_jax._x64 import enable_x64
+    from g2r_jax.colour import conversions as gc
+    from g2r_jax.colour import dng_model as dng
+    from g2r_jax.runtime.x64 import enable_x64
 
     with enable_x64():
         model = jax.tree_util.tree_map(lambda a: jnp.asarray(a, jnp.float64), profile.colour)
@@ -49,9 +49,9 @@ def neutral_for(profile, cct: float) -> np.ndarray:
 
 
 def write_ramp_dng(path: Path, profile, neutral, gain: float, highlight_safe) -> None:
-    from g2r_jax.convert import dng_info_for
+    from g2r_jax.batch.conversion import dng_info_for
     from g2r_jax.io.dng_write import write_dng
-    from g2r_jax.unprocess import unprocess
+    from g2r_jax.pipeline import unprocess
 
     image = jnp.asarray(ramp_image())
     mosaic, metadata = unprocess(jax.random.PRNGKey(0), image, profile, neutral=jnp.asarray(neutral, jnp.float32),
@@ -117,7 +117,7 @@ def measure(profile, neutral, gain: float, highlight_safe, folder: Path) -> dict
 
 
 def main() -> int:
-    from g2r_jax.profile import load_profile
+    from g2r_jax.profile.schema import load_profile
 
     profile = load_profile("Canon600D")
     folder = Path(tempfile.mkdtemp())

@@ -39,9 +39,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from g2r_jax import charts as _charts  # noqa: E402
-from g2r_jax import colour as _colour  # noqa: E402
-from g2r_jax import colour_fit  # noqa: E402
+from g2r_jax.colour import charts as _charts  # noqa: E402
+from g2r_jax.colour import conversions as _colour  # noqa: E402
+from g2r_jax.colour import chart_fit as colour_fit  # noqa: E402
 
 TRAIN_PER_FOLD = 2000
 # Brooks et al. 2019 (unprocess.py, random_ccm): XYZ -> camera matrices of four cameras.
@@ -99,7 +99,7 @@ def upi_charts(chart_linear, n, rng):
 def sampled_neutrals(illuminants, n, seed):
     import jax
 
-    from g2r_jax import illuminants as il
+    from g2r_jax.illuminants import distributions as il
 
     model = il.fit_gaussian(il.neutral_to_chromaticity(illuminants))
     return np.asarray(il.sample_neutrals(jax.random.PRNGKey(seed), model, n), np.float64)
@@ -113,7 +113,7 @@ def statistics(errors) -> dict:
 
 
 def run(charts_path, profile_path, *, train_per_fold=TRAIN_PER_FOLD, seed=0, progress=print) -> dict:
-    from g2r_jax.profile import load_profile
+    from g2r_jax.profile.schema import load_profile
 
     charts = _charts.read_charts(charts_path)
     profile = load_profile(profile_path)

@@ -31,9 +31,9 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from g2r_jax import load_profile  # noqa: E402
-from g2r_jax import noise_estimation as ne  # noqa: E402
-from g2r_jax import noise_extension as nx  # noqa: E402
-from g2r_jax.audit.stats import to_normalised_planes  # noqa: E402
+from g2r_jax.sensor.noise import estimation as ne  # noqa: E402
+from g2r_jax.sensor.noise import extension as nx  # noqa: E402
+from g2r_jax.sensor.noise.estimation import to_normalised_planes  # noqa: E402
 from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels  # noqa: E402
 
 N_BINS = 24
@@ -51,7 +51,7 @@ def simulate_planes(profile, height, width, seed=0, exposures=(0.06, 0.25, 1.0))
     import jax
 
     from g2r_jax.audit import scenes
-    from g2r_jax.unprocess import unprocess
+    from g2r_jax.pipeline import unprocess
 
     out = []
     for i, gain in enumerate(exposures):

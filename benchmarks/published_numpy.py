@@ -84,7 +84,7 @@ def published_matrices(profile, neutral):
     ColorMatrices, interpolated in mired at the neutral's CCT, 2500 K for Standard Light A)."""
     import jax.numpy as jnp
 
-    from g2r_jax import colour, dng
+    from g2r_jax.colour import conversions as colour, dng_model as dng
 
     model = profile.colour
     xy, _ = dng.camera_neutral_to_xy(jnp.asarray(neutral, jnp.float32), model, throw=False)
@@ -118,7 +118,7 @@ def convert_folder(inputs, profile, out_dir, seed: int = 0) -> int:
     """One image after the other: decode, sample, the published steps, write a DNG."""
     from PIL import Image
 
-    from g2r_jax.convert import dng_info_for
+    from g2r_jax.batch.conversion import dng_info_for
     from g2r_jax.io.dng_write import write_dng_bytes
 
     out_dir = Path(out_dir)
@@ -146,7 +146,7 @@ def main(argv=None) -> int:
     parser.add_argument("--profile", default="Canon600D")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
-    from g2r_jax.profile import load_profile
+    from g2r_jax.profile.schema import load_profile
 
     files = sorted(p for p in args.inputs.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg"))
     count = convert_folder(files, load_profile(args.profile), args.output, args.seed)

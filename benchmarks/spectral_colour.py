@@ -43,7 +43,7 @@ CANON_600D_JSON = "spectral/rawtoaces/camera/Canon_EOS_600D_380_780_5.json"
 
 
 def print_summary(title, table):
-    from g2r_jax.spectral import accuracy
+    from g2r_jax.colour.spectral import accuracy
 
     print(f"\n{title}\n{'model':30s} {'locus (7)':>10s} {'off (6)':>8s} {'HP1 mean (max)':>16s}")
     for model, row in accuracy.summarise(table).items():
@@ -57,7 +57,7 @@ def print_summary(title, table):
 def section_table():
     import g2r_jax
     from g2r_jax.io.sensitivities import read_sensitivities
-    from g2r_jax.spectral import accuracy
+    from g2r_jax.colour.spectral import accuracy
 
     truth = read_sensitivities(DATA / CANON_600D_JSON).values
     profile = g2r_jax.load_profile("Canon600D", dtype=np.float64)
@@ -69,8 +69,8 @@ def section_table():
 def section_estimate():
     import g2r_jax
     from g2r_jax.io.sensitivities import read_sensitivities
-    from g2r_jax.spectral import accuracy, build_tables
-    from g2r_jax.spectral.estimate import build_basis, calibration_light, estimate_from_matrices
+    from g2r_jax.colour.spectral import accuracy, build_tables
+    from g2r_jax.colour.spectral.estimate import build_basis, calibration_light, estimate_from_matrices
 
     results = build_tables.leave_one_out(DATA)
     angles = np.array([r["angle"] for r in results])
@@ -109,7 +109,7 @@ def _gehler_shi(charts_dir=None) -> dict:
     the release's .mat files by that script's own loader (black 129 removed from the 5D images)."""
     from gehler_shi_charts import CAMERAS, charts_for, load_release
 
-    from g2r_jax.charts import read_charts
+    from g2r_jax.colour.charts import read_charts
 
     if charts_dir is not None:
         return {name: read_charts(Path(charts_dir) / f"gehler_shi_{key}.csv") for key, (name, _, _) in CAMERAS.items()}
@@ -120,12 +120,12 @@ def _gehler_shi(charts_dir=None) -> dict:
 def section_gehler(charts_dir=None):
     import jax
 
-    from g2r_jax import colour as _colour
-    from g2r_jax import dng as _dng
-    from g2r_jax.dng import DngColourModel
-    from g2r_jax.spectral import accuracy
-    from g2r_jax.spectral.estimate import estimate_sensitivities
-    from g2r_jax.spectral.illuminant_spectra import choose_lamp_families
+    from g2r_jax.colour import conversions as _colour
+    from g2r_jax.colour import dng_model as _dng
+    from g2r_jax.colour.dng_model import DngColourModel
+    from g2r_jax.colour.spectral import accuracy
+    from g2r_jax.colour.spectral.estimate import estimate_sensitivities
+    from g2r_jax.colour.spectral.illuminant_spectra import choose_lamp_families
 
     sys.path.insert(0, str(ROOT / "benchmarks"))
     charts = _gehler_shi(charts_dir)
@@ -175,7 +175,7 @@ def section_cost(quick: bool, repeats: int):
     import jax
 
     import g2r_jax
-    from g2r_jax.spectral import attach_spectral
+    from g2r_jax.colour.spectral import attach_spectral
 
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from throughput import test_image

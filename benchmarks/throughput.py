@@ -105,7 +105,7 @@ def section_numpy(args) -> dict:
     sys.path.insert(0, str(HERE))
     from published_numpy import published_matrices, unprocess_published
 
-    from g2r_jax.profile import load_profile
+    from g2r_jax.profile.schema import load_profile
 
     height, width = args.size
     profile = load_profile("Canon600D")
@@ -127,8 +127,8 @@ def section_jax(args) -> dict:
     import jax
     import jax.numpy as jnp
 
-    from g2r_jax.profile import load_profile
-    from g2r_jax.unprocess import unprocess, unprocess_batch
+    from g2r_jax.profile.schema import load_profile
+    from g2r_jax.pipeline import unprocess, unprocess_batch
 
     height, width = args.size
     batch = args.batch
@@ -167,8 +167,9 @@ def _sampling(profile_name: str, count: int, subset: int) -> dict:
     import jax
     from colour_hdri.models import dng as reference
 
-    from g2r_jax import dng, illuminants
-    from g2r_jax.profile import load_profile
+    from g2r_jax.colour import dng_model as dng
+    from g2r_jax.illuminants import distributions as illuminants
+    from g2r_jax.profile.schema import load_profile
 
     profile = load_profile(profile_name)
     model = profile.colour
@@ -297,8 +298,8 @@ def section_noise(args) -> dict:
     import jax
     import jax.numpy as jnp
 
-    from g2r_jax.profile import load_profile
-    from g2r_jax.unprocess import unprocess_batch
+    from g2r_jax.profile.schema import load_profile
+    from g2r_jax.pipeline import unprocess_batch
 
     height, width = args.size
     profile = load_profile(args.profile)
@@ -393,8 +394,8 @@ def section_capacity(args) -> dict:
     import jax
     import jax.numpy as jnp
 
-    from g2r_jax.profile import load_profile
-    from g2r_jax.unprocess import unprocess_batch
+    from g2r_jax.profile.schema import load_profile
+    from g2r_jax.pipeline import unprocess_batch
 
     device = jax.devices()[0]
     if device.platform == "cpu":
@@ -435,8 +436,8 @@ def section_stages(args) -> dict:
     import jax
     import jax.numpy as jnp
 
-    from g2r_jax.profile import load_profile
-    from g2r_jax.unprocess import batch_conditions, render_mosaic, sample_conditions
+    from g2r_jax.profile.schema import load_profile
+    from g2r_jax.pipeline import batch_conditions, render_mosaic, sample_conditions
 
     device = jax.devices()[0]
     height, width = args.size
@@ -514,7 +515,7 @@ def _cpu_vector_width() -> str:
     """The XLA CPU vector width the sections ran with (each section imports g2r_jax, which
     chooses it: `g2r_jax.cpu_vectors.chosen_width`)."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from g2r_jax.cpu_vectors import chosen_width
+    from g2r_jax.runtime.cpu_vectors import chosen_width
 
     return f"XLA CPU vectors {chosen_width() or '256 (XLA default)'} bits"
 

@@ -45,8 +45,8 @@ def main(argv=None) -> int:
     import jax
     import jax.numpy as jnp
 
-    from g2r_jax.profile import load_profile
-    from g2r_jax.unprocess import unprocess_batch
+    from g2r_jax.profile.schema import load_profile
+    from g2r_jax.pipeline import unprocess_batch
     from throughput import test_image
 
     profile = load_profile(args.profile)

@@ -12,15 +12,14 @@ command's `--help` do not pay for importing JAX and colour-science.
 from __future__ import annotations
 
 import importlib
-import sys
-import types
 
 _EXPORTS = {
-    "DngColourModel": "dng", "camera_neutral_to_xy": "dng", "camera_neutrals_to_xy": "dng",
-    "xy_to_camera_neutral": "dng", "fit_profile": "fit", "IlluminantModel": "illuminants",
-    "sample_neutrals": "illuminants", "ProfileError": "profile", "SensorProfile": "profile",
-    "load_profile": "profile", "save_profile": "profile", "shipped_profiles": "profile",
-    "unprocess": "unprocess", "unprocess_batch": "unprocess",
+    "DngColourModel": "colour.dng_model", "camera_neutral_to_xy": "colour.dng_model",
+    "camera_neutrals_to_xy": "colour.dng_model", "xy_to_camera_neutral": "colour.dng_model",
+    "fit_profile": "profile.fitting", "IlluminantModel": "illuminants.distributions",
+    "sample_neutrals": "illuminants.distributions", "ProfileError": "profile.checks",
+    "SensorProfile": "profile.schema", "load_profile": "profile.schema", "save_profile": "profile.schema",
+    "shipped_profiles": "profile.schema", "unprocess": "pipeline", "unprocess_batch": "pipeline",
 }
 
 
@@ -36,27 +35,14 @@ def __dir__():
     return sorted(set(globals()) | set(_EXPORTS))
 
 
-class _Package(types.ModuleType):
-    """Keeps `g2r_jax.unprocess` the function: importing the submodule of the same name would
-    otherwise bind the package attribute to the module (the eager import used to rebind it)."""
-
-    def __setattr__(self, name, value):
-        if isinstance(value, types.ModuleType) and _EXPORTS.get(name) == name and hasattr(value, name):
-            value = getattr(value, name)
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package
-
-
-from .cpu_vectors import prefer_wide_vectors as _prefer_wide_vectors  # noqa: E402  (before JAX starts)
+from g2r_jax.runtime.cpu_vectors import prefer_wide_vectors as _prefer_wide_vectors  # noqa: E402  (must run before JAX starts)
 
 _prefer_wide_vectors()
 
 
 def diagnose(*args, **kwargs):
     """Measured DNGs vs the profile's simulation: see `g2r_jax.audit.diagnose`."""
-    from .audit import diagnose as _diagnose
+    from g2r_jax.audit import diagnose as _diagnose
 
     return _diagnose(*args, **kwargs)
 

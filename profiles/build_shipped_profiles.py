@@ -15,11 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from g2r_jax.cli.fit_profile import read_noise_table
-from g2r_jax.fit import fit_profile
-from g2r_jax.illuminants import neutral_to_chromaticity
+from g2r_jax.profile.fitting import fit_profile
+from g2r_jax.illuminants.distributions import neutral_to_chromaticity
 from g2r_jax.io.dng_info import DngInfo
 from g2r_jax.io.dng_read import read_dng_info
-from g2r_jax.profile import save_profile
+from g2r_jax.profile.schema import save_profile
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE.parent / ".." / "shared" / "data"

@@ -32,7 +32,7 @@ def neutral_to_xy(neutral, *args, iterations=500):
 
 def colour_hdri_arguments(info):
     """(CCT1, CCT2, CM1, CM2, CC1, CC2, AB), (FM1, FM2) in colour_hdri's conventions from a DngInfo."""
-    from g2r_jax.dng import calibration_illuminant_cct
+    from g2r_jax.colour.dng_model import calibration_illuminant_cct
 
     ccts = [calibration_illuminant_cct(c) for c in info.calibration_illuminants]
     cms = list(info.color_matrices)

@@ -307,7 +307,7 @@ def _memory_problem() -> list:
 def fit_case(work: Path, seed_path: Path, partners, data: bytes) -> list:
     """Two good DNGs and one mutated copy through g2r-fit-profile; the broken promises."""
     from g2r_jax.cli.fit_profile import main
-    from g2r_jax.profile import load_profile
+    from g2r_jax.profile.schema import load_profile
 
     folder = work / "in"
     folder.mkdir()

@@ -9,7 +9,7 @@ import pytest
 from g2r_jax.audit import CAUSES, synthetic
 from g2r_jax.cli.diagnose import main
 from g2r_jax.io.dng_write import write_dng
-from g2r_jax.profile import save_profile
+from g2r_jax.profile.schema import save_profile
 from audit_helpers import measured_set
 
 

@@ -65,7 +65,7 @@ def test_clean_sets_false_alarms(seed, base):
 def test_simulated_sizes_mirror_the_measured_mix():
     from importlib import import_module
 
-    simulation_sizes = import_module("g2r_jax.audit.diagnose").simulation_sizes
+    simulation_sizes = import_module("g2r_jax.audit.runner").simulation_sizes
     mixed = [(120, 180)] * 8 + [(200, 300)] * 8 + [(160, 240)] * 8
     assert sorted(simulation_sizes(mixed, 24)) == [((120, 180), 8), ((160, 240), 8), ((200, 300), 8)]
     assert simulation_sizes([(120, 180)] * 5, 24) == [((120, 180), 24)]

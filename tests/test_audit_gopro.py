@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 import g2r_jax
-from g2r_jax import noise_estimation, sensor
+from g2r_jax.sensor.noise import estimation as noise_estimation
+from g2r_jax import sensor
 from g2r_jax.audit import diagnose, report
 
 DNG = Path(__file__).parents[1] / ".." / "shared" / "data" / "dng" / "gopro_hero6_GOPR0024.dng"

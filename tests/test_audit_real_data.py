@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from g2r_jax import illuminants as _illuminants
-from g2r_jax import profile as _profile
+from g2r_jax.illuminants import distributions as _illuminants
+from g2r_jax.profile import schema as _profile
 from g2r_jax.audit import diagnose, scenes, simulate, synthetic
 
 DATA = Path(__file__).parents[1] / ".." / "shared" / "data"

@@ -63,7 +63,7 @@ def test_a_component_seen_in_few_files_does_not_swamp_the_max_t_null():
 
 
 def test_energy_test_matches_the_energy_distance():
-    from g2r_jax.illuminants import energy_distance
+    from g2r_jax.illuminants.distributions import energy_distance
 
     rng = np.random.default_rng(4)
     a, b = rng.normal(size=(20, 2)), rng.normal(size=(100, 2)) + [2.0, 0]

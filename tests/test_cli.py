@@ -15,7 +15,7 @@ from PIL import Image
 
 from g2r_jax.cli.convert import main as convert
 from g2r_jax.cli.fit_profile import main as fit_profile_cli
-from g2r_jax.profile import load_profile
+from g2r_jax.profile.schema import load_profile
 
 
 def digest(path):
@@ -170,7 +170,7 @@ def test_fit_profile_from_illuminant_list_and_noise_table(tmp_path, shared_data)
 
 def test_lens_shading_option_divides_by_the_written_opcode_gain(tmp_path, capsys):
     from g2r_jax.io.dng_read import read_dng_info
-    from g2r_jax.lens_shading import shading_gain_planes
+    from g2r_jax.sensor.shading import shading_gain_planes
     from g2r_jax.sensor import to_planes
 
     folder = tmp_path / "in"
@@ -193,7 +193,7 @@ def test_lens_shading_option_divides_by_the_written_opcode_gain(tmp_path, capsys
 
 
 def test_commands_request_deterministic_gpu_ops_and_keep_a_user_choice(monkeypatch):
-    from g2r_jax import deterministic
+    from g2r_jax.runtime import deterministic
 
     monkeypatch.setenv("XLA_FLAGS", "--xla_dump_to=/tmp/x")
     assert deterministic.request_deterministic_gpu_ops()

@@ -5,8 +5,8 @@ import jax
 import numpy as np
 import pytest
 
-from g2r_jax import colour as gc
-from g2r_jax._x64 import enable_x64
+from g2r_jax.colour import conversions as gc
+from g2r_jax.runtime.x64 import enable_x64
 
 
 @pytest.fixture(autouse=True)

@@ -8,11 +8,11 @@ import json
 import numpy as np
 import pytest
 
-from g2r_jax import charts as C
-from g2r_jax import colour_fit as F
+from g2r_jax.colour import charts as C
+from g2r_jax.colour import chart_fit as F
 from g2r_jax.audit import diagnose, synthetic
-from g2r_jax.dng import DngColourModel
-from g2r_jax.profile import load_profile, replace, save_profile
+from g2r_jax.colour.dng_model import DngColourModel
+from g2r_jax.profile.schema import load_profile, replace, save_profile
 
 PROFILE = "profiles/Canon600D.json"
 
@@ -78,7 +78,7 @@ def test_closed_form_prediction_is_unprocess():
     chart = C.chart_srgb()
     chart[18] = 0.7                      # an exactly neutral patch
     simulated = F.simulate_patches(profile, neutrals, chart)
-    from g2r_jax.colour import srgb_to_linear
+    from g2r_jax.colour.conversions import srgb_to_linear
 
     charts = C.ChartSet(["a", "b", "c"], simulated, neutrals)
     predicted = F.predict_patches_np(profile.colour, charts, np.asarray(srgb_to_linear(chart), np.float64))
@@ -93,7 +93,7 @@ def test_implicit_derivative_of_the_white_point():
     import jax
     import jax.numpy as jnp
 
-    from g2r_jax._x64 import enable_x64
+    from g2r_jax.runtime.x64 import enable_x64
 
     profile = load_profile(PROFILE)
     with enable_x64():

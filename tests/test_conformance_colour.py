@@ -18,15 +18,15 @@ pytest.importorskip("rawpy")
 import conformance_colour as cc  # noqa: E402
 from dng_reference import mean_delta_E_2000, patch_camera_rgb, patch_scene, render_patches_to_XYZ_D65  # noqa: E402
 
-from g2r_jax import colour as gc  # noqa: E402
-from g2r_jax import dng  # noqa: E402
-from g2r_jax._x64 import enable_x64  # noqa: E402
+from g2r_jax.colour import conversions as gc  # noqa: E402
+from g2r_jax.colour import dng_model as dng  # noqa: E402
+from g2r_jax.runtime.x64 import enable_x64  # noqa: E402
 from g2r_jax.cli.convert import main as convert_main  # noqa: E402
-from g2r_jax.fit import fit_profile  # noqa: E402
+from g2r_jax.profile.fitting import fit_profile  # noqa: E402
 from g2r_jax.io.dng_info import DngError  # noqa: E402
 from g2r_jax.io.dng_read import read_dng_info, require_colour_tags  # noqa: E402
 from g2r_jax.io.illuminant_data import parse_illuminant_data  # noqa: E402
-from g2r_jax.profile import load_profile, profile_to_dict, save_profile  # noqa: E402
+from g2r_jax.profile.schema import load_profile, profile_to_dict, save_profile  # noqa: E402
 
 A_FIRST = dict(codes=(17, 21), color_matrices=(cc.CM_A, cc.CM_D65), camera_calibrations=(cc.CC_A, cc.CC_D65),
                forward_matrices=(cc.FM_A, cc.FM_D65))

@@ -10,7 +10,7 @@ AVX2 = "processor\t: 0\nflags\t\t: fpu sse2 avx2 fma\n"
 
 
 def test_the_flag_is_added_only_where_it_helps_and_no_choice_is_overridden(monkeypatch):
-    from g2r_jax import cpu_vectors
+    from g2r_jax.runtime import cpu_vectors
 
     monkeypatch.delenv(cpu_vectors.OPT_OUT, raising=False)
     monkeypatch.setenv("XLA_FLAGS", "--xla_dump_to=/tmp/x")
@@ -31,7 +31,7 @@ def test_the_flag_is_added_only_where_it_helps_and_no_choice_is_overridden(monke
 
 _MOSAIC_DIGEST = """
 import hashlib, importlib, numpy as np, jax.numpy as jnp, g2r_jax
-unprocess = importlib.import_module("g2r_jax.unprocess")
+unprocess = importlib.import_module("g2r_jax.pipeline")
 digests = []
 for name in ("s20fe_night",):
     profile = g2r_jax.load_profile(name)

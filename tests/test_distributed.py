@@ -19,9 +19,9 @@ from PIL import Image
 
 SHARDING_CHECK = textwrap.dedent("""
     import jax, jax.numpy as jnp, numpy as np
-    from g2r_jax.profile import load_profile
-    from g2r_jax.unprocess import unprocess, unprocess_batch
-    from g2r_jax.distributed import unprocess_sharded
+    from g2r_jax.profile.schema import load_profile
+    from g2r_jax.pipeline import unprocess, unprocess_batch
+    from g2r_jax.batch.distributed import unprocess_sharded
 
     assert len(jax.local_devices()) == 4, jax.local_devices()
     profile = load_profile("s20fe_night")
@@ -76,9 +76,9 @@ def _write_inputs(folder):
 @pytest.mark.slow
 def test_ray_engine_writes_the_same_bytes_as_the_local_engine(tmp_path):
     ray = pytest.importorskip("ray")
-    from g2r_jax.convert import ConvertOptions, convert_files
-    from g2r_jax.distributed import convert_files_ray
-    from g2r_jax.profile import load_profile
+    from g2r_jax.batch.conversion import ConvertOptions, convert_files
+    from g2r_jax.batch.distributed import convert_files_ray
+    from g2r_jax.profile.schema import load_profile
 
     files = _write_inputs(tmp_path / "in")
     neutrals = np.tile([0.6, 1.0, 0.8], (len(files), 1)) * np.linspace(0.9, 1.1, len(files))[:, None]
@@ -106,7 +106,7 @@ def test_ray_engine_writes_the_same_bytes_as_the_local_engine(tmp_path):
 def test_ray_engine_reports_a_missing_ray_clearly(monkeypatch):
     import builtins
 
-    from g2r_jax import distributed
+    from g2r_jax.batch import distributed
 
     real_import = builtins.__import__
 
@@ -124,8 +124,8 @@ def test_unprocess_batch_gives_the_same_bytes_whatever_the_batch():
     import jax
     import jax.numpy as jnp
 
-    from g2r_jax.profile import load_profile
-    from g2r_jax.unprocess import unprocess, unprocess_batch
+    from g2r_jax.profile.schema import load_profile
+    from g2r_jax.pipeline import unprocess, unprocess_batch
 
     profile = load_profile("gopro_hero6")
     images = jnp.asarray(np.random.default_rng(2).integers(0, 256, (5, 16, 24, 3), dtype=np.uint8))

@@ -10,9 +10,9 @@ import pytest
 colour_hdri = pytest.importorskip("colour_hdri")
 from colour_hdri.models import dng as reference  # noqa: E402
 
-from g2r_jax import dng  # noqa: E402
+from g2r_jax.colour import dng_model as dng  # noqa: E402
 from dng_reference import NotConverged, neutral_to_xy  # noqa: E402
-from g2r_jax._x64 import enable_x64  # noqa: E402
+from g2r_jax.runtime.x64 import enable_x64  # noqa: E402
 
 I3 = np.eye(3)
 

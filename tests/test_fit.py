@@ -3,9 +3,9 @@
 import jax.numpy as jnp
 import numpy as np
 
-from g2r_jax import dng
-from g2r_jax.colour import CCT_to_xy
-from g2r_jax.fit import fit_color_matrix_pair, fit_profile
+from g2r_jax.colour import dng_model as dng
+from g2r_jax.colour.conversions import CCT_to_xy
+from g2r_jax.profile.fitting import fit_color_matrix_pair, fit_profile
 from g2r_jax.io.dng_info import DngInfo
 
 CM_A = np.array([0.7164, -0.1916, -0.0431, -0.3361, 1.06, 0.32, -0.0272, 0.1058, 0.6442]).reshape(3, 3)

@@ -18,8 +18,8 @@ pytest.importorskip("colour_hdri")
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 import highlights as hl  # noqa: E402
 
-from g2r_jax.profile import load_profile  # noqa: E402
-from g2r_jax.unprocess import unprocess  # noqa: E402
+from g2r_jax.profile.schema import load_profile  # noqa: E402
+from g2r_jax.pipeline import unprocess  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -6,9 +6,9 @@ import jax
 import numpy as np
 import pytest
 
-from g2r_jax import illuminants as il
-from g2r_jax.dng import DngColourModel
-from g2r_jax.profile import load_profile
+from g2r_jax.illuminants import distributions as il
+from g2r_jax.colour.dng_model import DngColourModel
+from g2r_jax.profile.schema import load_profile
 
 CANON_A = np.array([0.7164, -0.1916, -0.0431, -0.3361, 1.06, 0.32, -0.0272, 0.1058, 0.6442]).reshape(3, 3)
 CANON_D65 = np.array([0.6461, -0.0907, -0.0882, -0.43, 1.2184, 0.2378, -0.0819, 0.1944, 0.5931]).reshape(3, 3)

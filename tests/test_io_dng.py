@@ -13,8 +13,7 @@ import rawpy
 import tifffile
 
 from g2r_jax.io.dng_info import DngError, DngInfo
-from g2r_jax.io.dng_read import (read_dng_info, read_dng_pixels, require_bayer_cfa,
-                                 require_colour_tags)
+from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels, require_bayer_cfa, require_colour_tags
 from g2r_jax.io.dng_write import to_rationals, write_dng, write_dng_bytes
 
 DATA = Path(__file__).parents[1] / ".." / "shared" / "data"

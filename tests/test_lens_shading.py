@@ -16,9 +16,8 @@ import pytest
 from g2r_jax.io.dng_info import DngError, DngInfo
 from g2r_jax.io.dng_read import read_dng_info
 from g2r_jax.io.dng_write import write_dng
-from g2r_jax.io.opcodes import (FixVignetteRadial, GainMap, Opcode, encode_opcode_list,
-                                parse_opcode_list)
-from g2r_jax.lens_shading import opcode_list_image_size, rescale_opcode_list, shading_gain_planes
+from g2r_jax.io.opcodes import FixVignetteRadial, GainMap, Opcode, encode_opcode_list, parse_opcode_list
+from g2r_jax.sensor.shading import opcode_list_image_size, rescale_opcode_list, shading_gain_planes
 from g2r_jax.sensor import from_planes
 
 DNG_DIR = Path(__file__).parents[1] / ".." / "shared" / "data" / "dng"

@@ -6,10 +6,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from g2r_jax import profile as pm
+from g2r_jax.profile import schema as pm
 from g2r_jax import sensor
-from g2r_jax.convert import ConvertOptions, convert_files, plan_buckets
-from g2r_jax.unprocess import unprocess_batch
+from g2r_jax.batch.conversion import ConvertOptions, convert_files, plan_buckets
+from g2r_jax.pipeline import unprocess_batch
 
 
 def _profile_with_every_effect():

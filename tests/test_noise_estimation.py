@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy.signal import correlate2d
 
-from g2r_jax import noise_estimation as ne
+from g2r_jax.sensor.noise import estimation as ne
 from g2r_jax.audit import scenes, synthetic
-from g2r_jax.audit.stats import to_normalised_planes
-from g2r_jax.unprocess import unprocess
+from g2r_jax.sensor.noise.estimation import to_normalised_planes
+from g2r_jax.pipeline import unprocess
 
 
 def _simulated_planes(seed=3, height=512, width=768, iso=400.0):

@@ -8,13 +8,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from g2r_jax import noise_estimation as ne
-from g2r_jax import noise_extension as nx
-from g2r_jax import profile as _profile
+from g2r_jax.sensor.noise import estimation as ne
+from g2r_jax.sensor.noise import extension as nx
+from g2r_jax.profile import schema as _profile
 from g2r_jax import sensor
 from g2r_jax.audit import scenes, synthetic
-from g2r_jax.audit.stats import to_normalised_planes
-from g2r_jax.unprocess import unprocess, unprocess_batch
+from g2r_jax.sensor.noise.estimation import to_normalised_planes
+from g2r_jax.pipeline import unprocess, unprocess_batch
 
 KERNEL = np.array([[0.0, 0.3, 0.0], [0.3, 1.0, 0.3], [0.0, 0.3, 0.0]])
 

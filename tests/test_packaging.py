@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from g2r_jax import profile as profile_module
+from g2r_jax.profile import schema as profile_module
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -6,8 +6,8 @@ import jax
 import numpy as np
 import pytest
 
-from g2r_jax import profile as pm
-from g2r_jax.unprocess import unprocess
+from g2r_jax.profile import schema as pm
+from g2r_jax.pipeline import unprocess
 
 
 def test_every_shipped_profile_loads_round_trips_and_runs(tmp_path):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from test_io_dng import CM_D65, make_info, random_mosaic
-from g2r_jax import profile as pm
+from g2r_jax.profile import schema as pm
 from g2r_jax.cli.common import error_message
 from g2r_jax.cli.convert import main as convert_main
 from g2r_jax.cli.diagnose import main as diagnose_main
@@ -185,7 +185,7 @@ def test_two_files_at_one_white_with_slightly_different_matrices_fit_a_valid_pro
     import dataclasses
 
     from g2r_jax.cli.fit_profile import validate_profile
-    from g2r_jax.fit import fit_profile
+    from g2r_jax.profile.fitting import fit_profile
     from g2r_jax.io.dng_read import read_dng_info
 
     good = read_dng_info(shared_data / "dng" / "gopro_hero6_GOPR0024.dng")

@@ -11,12 +11,12 @@ import pytest
 pytest.importorskip("colour_hdri")
 from dng_reference import mean_delta_E_2000, patch_camera_rgb, patch_scene, render_patches_to_XYZ_D65  # noqa: E402
 
-from g2r_jax import colour as gc  # noqa: E402
-from g2r_jax import dng  # noqa: E402
-from g2r_jax._x64 import enable_x64  # noqa: E402
+from g2r_jax.colour import conversions as gc  # noqa: E402
+from g2r_jax.colour import dng_model as dng  # noqa: E402
+from g2r_jax.runtime.x64 import enable_x64  # noqa: E402
 from g2r_jax.cli.convert import main as convert_main  # noqa: E402
 from g2r_jax.io.dng_read import read_dng_info  # noqa: E402
-from g2r_jax.profile import load_profile, save_profile  # noqa: E402
+from g2r_jax.profile.schema import load_profile, save_profile  # noqa: E402
 
 
 
@@ -63,7 +63,7 @@ def test_round_trip_A_D65_camera(tmp_path, cct):
 @pytest.mark.parametrize("cct", [2900, 4000, 5000, 6500])
 def test_round_trip_real_gopro_tungsten_D50(tmp_path, shared_data, cct):
     """The real GoPro HERO6 DNG (Tungsten / D50 calibration), profile fitted from its tags."""
-    from g2r_jax.fit import fit_profile
+    from g2r_jax.profile.fitting import fit_profile
 
     info = read_dng_info(shared_data / "dng" / "gopro_hero6_GOPR0024.dng")
     profile_path = tmp_path / "gopro.json"

@@ -13,9 +13,10 @@ import pytest
 import g2r_jax
 from g2r_jax.io.dng_info import DngError
 from g2r_jax.io.sensitivities import read_sensitivities
-from g2r_jax.profile import ProfileError, profile_from_dict, profile_to_dict
-from g2r_jax.spectral import accuracy, attach_spectral, tables
-from g2r_jax.spectral.illuminant_spectra import illuminant_spectrum, solve_filter
+from g2r_jax.profile.checks import ProfileError
+from g2r_jax.profile.schema import profile_from_dict, profile_to_dict
+from g2r_jax.colour.spectral import accuracy, attach_spectral, tables
+from g2r_jax.colour.spectral.illuminant_spectra import illuminant_spectrum, solve_filter
 
 CANON_600D_JSON = "spectral/rawtoaces/camera/Canon_EOS_600D_380_780_5.json"
 
@@ -27,7 +28,7 @@ def spectral_s20fe():
 
 def test_mallett_yuksel_basis_reproduces_srgb_primaries():
     # XYZ of the three basis reflectances under D65 ~ the sRGB primaries (Mallett & Yuksel 2019)
-    from g2r_jax.colour import MATRIX_SRGB_TO_XYZ
+    from g2r_jax.colour.conversions import MATRIX_SRGB_TO_XYZ
 
     xyz = tables.tristimulus(tables.mallett_yuksel_basis().T, tables.illuminant("D65")).T
     assert np.abs(xyz - MATRIX_SRGB_TO_XYZ).max() < 0.01

@@ -11,8 +11,8 @@ from PIL import Image
 from g2r_jax.cli.convert import main as convert
 from g2r_jax.cli.fit_profile import main as fit_profile_cli
 from g2r_jax.io.dng_read import read_dng_info
-from g2r_jax.profile import load_profile
-from g2r_jax.spectral.tables import LAMP_FAMILIES
+from g2r_jax.profile.schema import load_profile
+from g2r_jax.colour.spectral.tables import LAMP_FAMILIES
 
 
 def write_png(path, seed, shape=(24, 32)):

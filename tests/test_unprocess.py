@@ -5,8 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from g2r_jax import profile as pm
-from g2r_jax.unprocess import unprocess
+from g2r_jax.profile import schema as pm
+from g2r_jax.pipeline import unprocess
 
 
 def with_cfa(profile, pattern):

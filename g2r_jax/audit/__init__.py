@@ -15,7 +15,7 @@ order: test, explain away, cross-validate, report), `report` (JSON, summary, HTM
 (demo camera and hidden-effect injection for tests and benchmarks), `loading` (files).
 """
 
-from .diagnose import diagnose
-from .vocabulary import CAUSES, UNEXPLAINED
+from g2r_jax.audit.runner import diagnose
+from g2r_jax.audit.vocabulary import CAUSES, UNEXPLAINED
 
 __all__ = ["diagnose", "CAUSES", "UNEXPLAINED"]

@@ -59,7 +59,7 @@ def noise_level_function(planes, *, clip, clip_low, edges=None, seed: int = 0, m
     edges = nlf_edges() if edges is None else edges
     clip = np.broadcast_to(np.asarray(clip, np.float64), (4,))
     clip_low = np.broadcast_to(np.asarray(clip_low, np.float64), (4,))
-    from .. import noise_estimation
+    from g2r_jax.sensor.noise import estimation as noise_estimation
 
     return noise_estimation.estimate_noise_level_function(planes, clip=clip, clip_low=clip_low, edges=edges,
                                                          seed=seed, min_blocks=min_blocks)
@@ -86,7 +86,7 @@ def nlf_halves(planes, *, clip, clip_low, seed: int = 0, max_tiles: int = MAX_TI
     Bins: up to N_BINS, fewer for small files (about 150 blocks of 8 x 8 per bin and plane); a
     bin needs SMALL_MIN_BLOCKS kept blocks in files with fewer than 3000 blocks per plane (their
     power comes from pooling files), 30 otherwise."""
-    from ..noise_estimation import block_statistics
+    from g2r_jax.sensor.noise.estimation import block_statistics
 
     a, b = tile_halves(planes, max_tiles=max_tiles)
     blocks = (a.shape[1] * a.shape[2] + b.shape[1] * b.shape[2]) / 64

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..convert import IMAGE_EXTENSIONS
-from ..io.dng_info import DngError, DngInfo
+from g2r_jax.batch.conversion import IMAGE_EXTENSIONS
+from g2r_jax.io.dng_info import DngError, DngInfo
 
 DNG_SUFFIXES = (".dng",)
 
@@ -31,7 +31,7 @@ def load_measured(items, *, on_error=None) -> list[tuple[np.ndarray, DngInfo]]:
     line to `on_error(line)` and skipped, and so are files whose size differs from the most common
     one; DngError then only when no file is left.
     """
-    from ..io.dng_read import read_dng_info, read_dng_pixels, require_bayer_cfa
+    from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels, require_bayer_cfa
 
     out, refused = [], []
     for item in items:
@@ -75,7 +75,7 @@ def check_measured(items, *, on_error=None) -> list:
     """Read the tags (not the pixels) of every DNG path among `items`, before any work is done:
     DngError naming the first file that cannot be audited, or with `on_error`, one line per such
     file to `on_error(line)` and the usable items returned."""
-    from ..io.dng_read import read_dng_info, require_bayer_cfa
+    from g2r_jax.io.dng_read import read_dng_info, require_bayer_cfa
 
     usable, refused = [], []
     for item in items:
@@ -107,8 +107,8 @@ def load_scenes(folder, n: int, height: int, width: int) -> np.ndarray:
     each resized to the measured files' size."""
     import jax
 
-    from ..colour import linear_to_srgb
-    from ..io.images import read_image
+    from g2r_jax.colour.conversions import linear_to_srgb
+    from g2r_jax.io.images import read_image
 
     folder = Path(folder)
     if not folder.is_dir():

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.atomic import atomic_write_bytes
+from g2r_jax.io.atomic import atomic_write_bytes
 
 
 def _plain(value):

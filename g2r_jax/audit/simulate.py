@@ -12,10 +12,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import illuminants as _illuminants
-from .. import profile as _profile
-from ..io.dng_info import DngInfo
-from ..unprocess import image_key, unprocess
+from g2r_jax.illuminants import distributions as _illuminants
+from g2r_jax.profile import schema as _profile
+from g2r_jax.io.dng_info import DngInfo
+from g2r_jax.pipeline import image_key, unprocess
 
 _BUCKET = 64
 
@@ -49,7 +49,7 @@ def lens_shading(profile, height: int, width: int):
     this size, as `g2r-convert` writes them (the raw carries the inverse of the gain)."""
     if "OpcodeList2" not in dict(profile.info.opcode_lists):
         return None, None
-    from ..convert import lens_shading_for
+    from g2r_jax.batch.conversion import lens_shading_for
 
     gain, data = lens_shading_for(profile, height, width)
     return (jnp.asarray(gain), data) if data else (None, None)

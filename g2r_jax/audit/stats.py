@@ -13,6 +13,8 @@ import functools
 
 import numpy as np
 
+from g2r_jax.sensor.noise.estimation import to_normalised_planes
+
 
 # Trimmed second moment: the mean of the smallest 90% of d^2 is 0.62302 sigma^2 for a zero-mean
 # Gaussian d (chi-square(1) truncated at its 0.9 quantile 2.7055); robust to the few differences
@@ -24,7 +26,6 @@ NLF_EDGES = np.array([-0.02, 0.01, 0.03, 0.06, 0.12, 0.25, 0.45, 0.7, 0.92])
 RINGS = 7
 
 
-LARGE = 4_000_000
 LARGE_BLOCKS = 3000       # files with this many 8x8 blocks per plane carry their own noise evidence
 STRIDE_PIXELS = 750_000   # per-plane pixel count above which some statistics read a strided subset
 
@@ -32,17 +33,6 @@ STRIDE_PIXELS = 750_000   # per-plane pixel count above which some statistics re
 def _stride(planes) -> int:
     """Step for statistics that need many pixels but not all (about STRIDE_PIXELS per plane)."""
     return max(1, int(round(np.sqrt(planes[0].size / STRIDE_PIXELS))))   # mosaics with more pixels are held in float32 (half the memory traffic)
-
-
-def to_normalised_planes(mosaic, black_level, white_level) -> np.ndarray:
-    """(H, W) DN mosaic -> (4, H/2, W/2) planes x = (DN - black) / (white - black); float64,
-    float32 above `LARGE` pixels."""
-    m = np.asarray(mosaic)
-    dtype = np.float32 if m.size > LARGE else np.float64
-    black = np.resize(np.asarray(black_level, np.float64), 4)
-    scale = 1.0 / (float(white_level) - black)
-    return np.stack([(m[dy::2, dx::2].astype(dtype) - dtype(black[p])) * dtype(scale[p])     # sensor.to_planes
-                     for p, (dy, dx) in enumerate(((0, 0), (0, 1), (1, 0), (1, 1)))])
 
 
 def block_means(planes, size: int) -> np.ndarray:
@@ -352,7 +342,7 @@ def gain_map_log_corner(opcode_lists, shape, cfa_pattern) -> np.ndarray:
 
 @functools.lru_cache(maxsize=16)
 def _gain_map_log_corner(data: bytes, shape, cfa_pattern) -> np.ndarray:
-    from ..lens_shading import rescale_opcode_list, shading_gain_planes
+    from g2r_jax.sensor.shading import rescale_opcode_list, shading_gain_planes
 
     height, width = shape
     step = max(1, min(height, width) // 400)          # the gains are smooth: a coarse grid will do
@@ -384,7 +374,7 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: 
     brightness (1), noise_corr (1), outliers (rows, cols, values) or None, neutral (3), shape, name, span.
     `nlf_tiles`: tiles per half for the NLF (default `evidence.MAX_TILES`; `evidence.tiles_per_half`).
     """
-    from . import evidence
+    from g2r_jax.audit import evidence
 
     black = np.resize(np.asarray(info.black_level, np.float64).reshape(-1), 4)
     white = float(info.white_level)
@@ -411,7 +401,7 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: 
         nlf = {half: dataclasses.replace(e, signal=e.signal + floor[:, None]) for half, e in nlf.items()}
     nlf_var, nlf_level = noise_level_function(planes, clip, band) if blocks < LARGE_BLOCKS else (None, None)
     greens = tuple(int(i) for i in np.flatnonzero(np.asarray(info.cfa_pattern) == 1)[:2])
-    from .. import fit as _fit
+    from g2r_jax.profile import fitting as _fit
     neutral = _fit.as_shot_neutral(info)
     iso = info.iso if info.iso else float(np.sqrt(np.prod(np.asarray(profile.noise.iso_range, np.float64))))
     binning = max(1, min(planes.shape[1:]) // SHADING_SIDE)

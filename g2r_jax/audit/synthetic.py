@@ -11,11 +11,11 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from .. import illuminants as _illuminants
-from .. import profile as _profile
-from .. import sensor as _sensor
-from ..dng import DngColourModel
-from ..profile import ProfileInfo, SensorProfile
+from g2r_jax.illuminants import distributions as _illuminants
+from g2r_jax.profile import schema as _profile
+from g2r_jax import sensor as _sensor
+from g2r_jax.colour.dng_model import DngColourModel
+from g2r_jax.profile.schema import ProfileInfo, SensorProfile
 
 # Invented XYZ -> camera matrices for Standard Light A (17) and D65 (21).
 _CM_A = [[0.92, -0.36, -0.02], [-0.40, 1.16, 0.27], [-0.04, 0.12, 0.70]]
@@ -142,7 +142,7 @@ def inject(profile: SensorProfile, cause: str, *, height: int = 200, width: int 
 def single_matrix_profile(profile: SensorProfile) -> SensorProfile:
     """`profile` reduced to its D65 ColorMatrix (a camera whose DNG carries one matrix): the
     profile under audit in the chart experiments (`colour_matrix`)."""
-    from ..colour_fit import with_colour
+    from g2r_jax.colour.chart_fit import with_colour
 
     codes = list(profile.info.calibration_illuminants)
     matrix = np.asarray(profile.colour.color_matrix[codes.index(21) if 21 in codes else -1], np.float64)
@@ -152,7 +152,7 @@ def single_matrix_profile(profile: SensorProfile) -> SensorProfile:
 def perturbed_colour(profile: SensorProfile, rng, size: float = 0.12) -> SensorProfile:
     """The camera a chart set is "measured" from: the profile's first ColorMatrix with an error
     drawn at random, CM -> (I + size * N(0, 1)) CM, as its only (D65) matrix."""
-    from ..colour_fit import with_colour
+    from g2r_jax.colour.chart_fit import with_colour
 
     matrix = np.asarray(profile.colour.color_matrix[0], np.float64)
     error = np.eye(3) + size * rng.normal(size=(3, 3))
@@ -166,8 +166,8 @@ def simulated_charts(truth: SensorProfile, n: int, seed: int, noise: float = 0.0
     noise per patch and channel, 3 % unusable (NaN) patches, 3 folds."""
     import jax
 
-    from .. import charts as _charts
-    from ..colour_fit import simulate_patches
+    from g2r_jax.colour import charts as _charts
+    from g2r_jax.colour.chart_fit import simulate_patches
 
     rng = np.random.default_rng(seed)
     neutrals = np.asarray(_illuminants.sample_neutrals(jax.random.PRNGKey(seed), truth.illuminants, n), np.float64)

@@ -10,7 +10,7 @@ called a finding. Each is defined in the cause's own module.
 
 from __future__ import annotations
 
-from .causes import REGISTRY
+from g2r_jax.audit.causes import REGISTRY
 
 CAUSES = tuple(c.name for c in REGISTRY if c.extensible)
 # causes whose evidence is measured DNG files (the others, e.g. colour_matrix, read measured charts)

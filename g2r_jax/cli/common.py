@@ -38,7 +38,7 @@ def is_library_text(message) -> bool:
 def error_message(error: BaseException) -> str:
     """The user's line for an exception: our own message shortened, or a plain sentence in place
     of a numerical library's dump (which `--debug` shows in full)."""
-    from ..io.dng_info import DngError
+    from g2r_jax.io.dng_info import DngError
 
     if isinstance(error, DngError):
         if is_library_text(error.problem):
@@ -98,11 +98,11 @@ def run_command(name: str, body, argv, parser) -> int:
                         help="do not use the on-disk compilation cache (default location "
                              "~/.cache/g2r_jax/jax, or $G2R_JAX_CACHE_DIR)")
     args = parser.parse_args(argv)
-    from ..deterministic import request_deterministic_gpu_ops
+    from g2r_jax.runtime.deterministic import request_deterministic_gpu_ops
 
     request_deterministic_gpu_ops()
     if not args.no_compile_cache:
-        from ..compile_cache import enable
+        from g2r_jax.runtime.compile_cache import enable
 
         enable(program=name)
     debug = bool(getattr(args, "debug", False))

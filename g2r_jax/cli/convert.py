@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .common import add_debug_flag, run_command
+from g2r_jax.cli.common import add_debug_flag, run_command
 
 DEFAULT_EXAMPLE_PROFILE = "Canon600D"
 
@@ -54,7 +54,7 @@ def read_illuminant_csv(path: Path):
 
     import numpy as np
 
-    from ..io.dng_info import DngError
+    from g2r_jax.io.dng_info import DngError
 
     try:
         with open(path, newline="") as handle:
@@ -77,10 +77,10 @@ def read_illuminant_csv(path: Path):
 
 
 def body(args) -> int:
-    from .. import profile as profile_module
-    from ..convert import IMAGE_EXTENSIONS, ConvertOptions, convert_files
-    from ..examples import EXAMPLE_SCENE
-    from ..io.images import list_inputs
+    from g2r_jax.profile import schema as profile_module
+    from g2r_jax.batch.conversion import IMAGE_EXTENSIONS, ConvertOptions, convert_files
+    from g2r_jax.examples import EXAMPLE_SCENE
+    from g2r_jax.io.images import list_inputs
 
     if args.list_profiles:
         print("\n".join(profile_module.shipped_profiles()))
@@ -101,7 +101,7 @@ def body(args) -> int:
         print(f"g2r-convert: example scene with profile {profile_name!r}"
               f"{' (the default; --profile NAME picks another)' if not args.profile else ''}", file=sys.stderr)
     if args.colour != "matrix" and profile.spectral is None:
-        from ..spectral import attach_spectral
+        from g2r_jax.colour.spectral import attach_spectral
 
         profile = attach_spectral(profile)
         print(f"g2r-convert: profile {profile.info.name!r} has no sensitivities; using ones "
@@ -127,7 +127,7 @@ def body(args) -> int:
         print(f"g2r-convert: error: {line}", file=sys.stderr)
     report = lambda line: print(f"g2r-convert: error: {line}", file=sys.stderr)
     if args.engine == "ray":
-        from ..distributed import convert_files_ray
+        from g2r_jax.batch.distributed import convert_files_ray
         result = convert_files_ray(files, profile_name, args.output, neutrals=neutrals, options=options, on_error=report)
     else:
         result = convert_files(files, profile, args.output, neutrals=neutrals, options=options, on_error=report)

@@ -7,8 +7,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..io.dng_info import DngError
-from .common import add_debug_flag, error_message, one_line, run_command
+from g2r_jax.io.dng_info import DngError
+from g2r_jax.cli.common import add_debug_flag, error_message, one_line, run_command
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -35,8 +35,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _run(args) -> int:
-    from ..audit import diagnose, loading, report
-    from ..profile import load_profile, save_profile
+    from g2r_jax.audit import diagnose, loading, report
+    from g2r_jax.profile.schema import load_profile, save_profile
 
     if not 0 < args.alpha < 1:
         raise ValueError(f"--alpha {args.alpha}: must be between 0 and 1")

@@ -6,15 +6,15 @@ import argparse
 import sys
 from pathlib import Path
 
-from .common import add_debug_flag, error_message, one_line, run_command
+from g2r_jax.cli.common import add_debug_flag, error_message, one_line, run_command
 
 
 def validate_profile(profile, path) -> None:
     """The loader's validation of `profile` as it would be written to `path` (ProfileError)."""
     import numpy as np
 
-    from .._x64 import enable_x64
-    from ..profile import profile_from_dict, profile_to_dict
+    from g2r_jax.runtime.x64 import enable_x64
+    from g2r_jax.profile.schema import profile_from_dict, profile_to_dict
 
     with enable_x64():
         profile_from_dict(profile_to_dict(profile), str(path), np.float64)
@@ -48,8 +48,8 @@ def read_noise_table(path: Path, black_level, white_level):
 
     import numpy as np
 
-    from ..io.dng_info import DngError
-    from ..profile import noise_from_table
+    from g2r_jax.io.dng_info import DngError
+    from g2r_jax.profile.schema import noise_from_table
 
     try:
         with open(path, newline="") as handle:
@@ -69,9 +69,9 @@ def read_noise_table(path: Path, black_level, white_level):
 
 
 def _calibration_infos(path: Path):
-    from ..io.dng_read import read_dng_info
-    from ..profile import load_profile
-    from ..io.dng_info import DngInfo
+    from g2r_jax.io.dng_read import read_dng_info
+    from g2r_jax.profile.schema import load_profile
+    from g2r_jax.io.dng_info import DngInfo
     import numpy as np
 
     if path.suffix.lower() == ".json":
@@ -106,9 +106,9 @@ def _with_sensitivities(profile, path, camera, chromaticities, infos):
     (from the measured illuminant CSV or the DNGs' as-shot neutrals)."""
     import numpy as np
 
-    from ..illuminants import neutral_to_chromaticity
-    from ..io.sensitivities import read_sensitivities
-    from ..spectral import attach_spectral
+    from g2r_jax.illuminants.distributions import neutral_to_chromaticity
+    from g2r_jax.io.sensitivities import read_sensitivities
+    from g2r_jax.colour.spectral import attach_spectral
 
     sensitivities = read_sensitivities(path, camera)
     if chromaticities is None:
@@ -120,12 +120,12 @@ def _with_sensitivities(profile, path, camera, chromaticities, infos):
 def body(args) -> int:
     import numpy as np
 
-    from ..fit import check_file_colour, fit_profile, levels_from_infos
-    from ..illuminants import neutral_to_chromaticity
-    from ..io.dng_read import read_dng_info, require_bayer_cfa, require_colour_tags
-    from ..io.images import list_inputs
-    from ..profile import save_profile
-    from .convert import read_illuminant_csv
+    from g2r_jax.profile.fitting import check_file_colour, fit_profile, levels_from_infos
+    from g2r_jax.illuminants.distributions import neutral_to_chromaticity
+    from g2r_jax.io.dng_read import read_dng_info, require_bayer_cfa, require_colour_tags
+    from g2r_jax.io.images import list_inputs
+    from g2r_jax.profile.schema import save_profile
+    from g2r_jax.cli.convert import read_illuminant_csv
 
     failures = []
     infos = []

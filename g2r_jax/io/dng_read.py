@@ -631,7 +631,7 @@ def read_dng_pixels(path, info: Optional[DngInfo] = None) -> np.ndarray:
     problem = getattr(info, "pixel_data_problem", None)
     if problem:
         raise DngError(path, problem)
-    from .native_stderr import captured_native_stderr
+    from g2r_jax.io.native_stderr import captured_native_stderr
 
     try:   # LibRaw may print its own complaints about damaged data: the DngError below says it
         with captured_native_stderr(lambda line: not line.startswith("g2r-")), rawpy.imread(str(path)) as raw:

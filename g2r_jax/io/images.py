@@ -172,7 +172,7 @@ def _read_tiff(path: Path) -> tuple:
 def _read_exr(path: Path) -> np.ndarray:
     import OpenEXR
 
-    from .native_stderr import captured_native_stderr
+    from g2r_jax.io.native_stderr import captured_native_stderr
 
     try:
         with captured_native_stderr(lambda line: "(EXR_ERR" in line or "OpenEXR" in line), \

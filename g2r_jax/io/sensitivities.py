@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .dng_info import DngError
+from g2r_jax.io.dng_info import DngError
 
 CAMSPEC_WAVELENGTHS = np.arange(400.0, 721.0, 10.0)
 
@@ -55,7 +55,7 @@ def _check(path, wavelengths, values) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _on_grid(path, wavelengths, values) -> np.ndarray:
-    from ..spectral.tables import resample
+    from g2r_jax.colour.spectral.tables import resample
 
     wavelengths, values = _check(path, wavelengths, values)
     return normalise(resample(wavelengths, values))

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .dng_info import DngError, DngInfo
+from g2r_jax.io.dng_info import DngError, DngInfo
 
 MIN_RANGE_DN = 32.0
 MAX_LEVEL = 65535.0

@@ -28,9 +28,19 @@ Interface (see `base.Cause` for defaults):
 
 from __future__ import annotations
 
-from . import (banding, black_level, colour_matrix, defective_pixels, exposure_distribution, green_imbalance,
-               illuminant_distribution, lens_shading, noise_correlation, noise_model, white_level)
-from .base import Cause
+from g2r_jax.audit.causes import (
+    banding,
+    black_level,
+    colour_matrix,
+    defective_pixels,
+    exposure_distribution,
+    green_imbalance,
+    illuminant_distribution,
+    lens_shading,
+    noise_correlation,
+    noise_model,
+    white_level)
+from g2r_jax.audit.causes.base import Cause
 
 REGISTRY: tuple[Cause, ...] = (
     illuminant_distribution.CAUSE,

@@ -23,7 +23,7 @@ import numpy as np
 
 from scipy import stats as _scipy_stats
 
-from .. import significance
+from g2r_jax.audit import significance
 
 MIN_FILES_PERMUTATION = 4   # below this, permutations over files cannot reach small p-values
 
@@ -36,7 +36,7 @@ def quiet_nanmean(values, axis=0):
 
 def effects_replaced(profile, **changes):
     """The profile with some `SensorEffects` fields replaced."""
-    from ... import profile as _profile
+    from g2r_jax.profile import schema as _profile
 
     return _profile.replace(profile, effects=_profile.replace(profile.effects, **changes))
 

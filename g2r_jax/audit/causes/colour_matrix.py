@@ -22,9 +22,9 @@ import warnings
 
 import numpy as np
 
-from ... import charts as _charts
-from ... import colour_fit
-from .base import Cause
+from g2r_jax.colour import charts as _charts
+from g2r_jax.colour import chart_fit as colour_fit
+from g2r_jax.audit.causes.base import Cause
 
 LOG_CHROMA_FLOOR = 0.005  # ~0.5 % in a colour ratio: below the repeatability of chart patch means
 
@@ -111,7 +111,7 @@ class ColourMatrix(Cause):
                 "rendered_delta_E_2000_mean": {"before": float(delta_before), "after": float(delta_after)}}
 
     def apply(self, profile, params):
-        from ...dng import DngColourModel
+        from g2r_jax.colour.dng_model import DngColourModel
 
         dtype = profile.colour.color_matrix.dtype
         model = DngColourModel.from_tags(params["calibration_illuminants"], params["color_matrices"],
@@ -126,7 +126,7 @@ class ColourMatrix(Cause):
 
     def cross_validate(self, measured, profile, *, folds: int = 3, seed: int = 0) -> dict:
         """Held-out gain over the chart file's folds (or `gain.folds_of`)."""
-        from ..gain import folds_of
+        from g2r_jax.audit.gain import folds_of
 
         if measured.folds is not None:
             fold_index = np.asarray(measured.folds)

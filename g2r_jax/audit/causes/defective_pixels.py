@@ -10,8 +10,8 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from .. import significance
-from .base import Cause, as_profile_dtype, effects_replaced
+from g2r_jax.audit import significance
+from g2r_jax.audit.causes.base import Cause, as_profile_dtype, effects_replaced
 
 
 MIN_FILES = 3

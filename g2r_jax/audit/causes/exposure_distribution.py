@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ... import profile as _profile
-from .base import Cause, as_profile_dtype, quiet_nanmean
+from g2r_jax.profile import schema as _profile
+from g2r_jax.audit.causes.base import Cause, as_profile_dtype, quiet_nanmean
 
 
 class ExposureDistribution(Cause):

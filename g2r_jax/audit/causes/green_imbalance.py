@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Cause, as_profile_dtype, effects_replaced
+from g2r_jax.audit.causes.base import Cause, as_profile_dtype, effects_replaced
 
 
 class GreenImbalance(Cause):

@@ -11,10 +11,10 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-from ... import illuminants as _illuminants
-from ... import profile as _profile
-from .. import significance
-from .base import Cause
+from g2r_jax.illuminants import distributions as _illuminants
+from g2r_jax.profile import schema as _profile
+from g2r_jax.audit import significance
+from g2r_jax.audit.causes.base import Cause
 
 SHRINKAGE = 3.0   # pseudo-points pulling mixture covariances towards the pooled covariance
 REFERENCE_SAMPLES = 200

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Cause, as_profile_dtype, effects_replaced, per_colour
+from g2r_jax.audit.causes.base import Cause, as_profile_dtype, effects_replaced, per_colour
 
 
 def shading_fit(profile, delta_log_corner) -> np.ndarray:

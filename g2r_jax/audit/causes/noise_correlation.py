@@ -7,7 +7,7 @@ reported as unexplained.
 
 from __future__ import annotations
 
-from .base import Cause
+from g2r_jax.audit.causes.base import Cause
 
 
 class NoiseCorrelation(Cause):

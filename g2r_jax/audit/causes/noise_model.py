@@ -33,9 +33,9 @@ import jax.numpy as jnp
 import numpy as np
 from scipy import stats as _scipy_stats
 
-from ... import profile as _profile
-from ..stats import LARGE_BLOCKS   # files with this many 8x8 blocks per plane carry their own noise evidence
-from .base import Cause, as_profile_dtype
+from g2r_jax.profile import schema as _profile
+from g2r_jax.audit.stats import LARGE_BLOCKS   # files with this many 8x8 blocks per plane carry their own noise evidence
+from g2r_jax.audit.causes.base import Cause, as_profile_dtype
 
 DARK_LEVEL = 0.05   # NLF bins below this are read-noise dominated
 MIN_BLOCKS = 10   # evidence.nlf_halves already asks 30 blocks of large files
@@ -55,7 +55,7 @@ def model_variance(profile, f, signal) -> np.ndarray:
     level-function extension where it has one, `noise_extension.predicted_variance`) + rounding
     + its banding (row and column offsets add their variance to every pixel, so once `banding` is
     explained away its variance is not reported again as a noise-model discrepancy)."""
-    from ...noise_extension import predicted_variance
+    from g2r_jax.sensor.noise.extension import predicted_variance
 
     effects = profile.effects
     banding = float(effects.row_noise_std) ** 2 + float(effects.column_noise_std) ** 2
@@ -233,7 +233,7 @@ def fit_level_function(files, profile) -> dict:
     (`noise_extension.fit_noise_extension`: piecewise linear in the signal, free in shape, since
     lossy raw compression makes real level functions fall in places), as JSON-ready params; the
     profile's other ISO rows get the same shape scaled by their shot x + read."""
-    from ...noise_extension import fit_noise_extension
+    from g2r_jax.sensor.noise.extension import fit_noise_extension
 
     f = max(files, key=lambda f: f["blocks"])
     half = f["nlf"]["A"]

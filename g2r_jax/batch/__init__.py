@@ -1,0 +1,1 @@
+"""Folder-scale conversion: `conversion` (files -> DNGs, size buckets, manifest), `distributed` (Ray)."""

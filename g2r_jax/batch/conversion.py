@@ -1,0 +1,354 @@
+"""Batch conversion of CG image files into DNGs of the profiled camera.
+
+The driver around `unprocess`: decodes files on worker threads ahead of the compute, runs one
+jitted `unprocess_batch` per batch of same-sized images (the last batch padded, so shapes and
+compiled code are reused; a batch is dispatched asynchronously and its results handed to the
+writers only once the next batch is queued), and writes DNGs atomically on worker threads.
+Memory stays bounded by the images in flight (loading window, two batches, writing window)
+whatever the folder size. A bad file is reported and the batch goes on. Every image's PRNG key
+derives from (seed, file name), so the same seed gives the same bytes whatever the batch order
+or batch size.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as futures
+import dataclasses
+import json
+import zlib
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from g2r_jax.io.atomic import atomic_write_bytes
+from g2r_jax.io.dng_info import DngError, DngInfo
+from g2r_jax.pipeline import unprocess_batch
+
+IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr")
+
+
+@dataclasses.dataclass
+class ConvertOptions:
+    """Options of a conversion run (all keyword-only in `convert_files`)."""
+
+    seed: int = 0
+    iso: float | None = None
+    noise: bool = True
+    effects: bool = True
+    transfer: str = "auto"        # 'auto': sRGB for PNG/JPEG/TIFF, linear for EXR
+    recipe: str = "dng"
+    colour: str = "matrix"        # colour stage: 'matrix', 'spectral', 'spectral-jakob2019'
+    batch_size: int = 4
+    workers: int = 2
+    crop_odd: bool = False
+    lens_shading: bool = False    # divide by the camera's lens-shading gain map and write its opcode
+    progress: bool = True
+
+
+@dataclasses.dataclass
+class ConvertResult:
+    """What a run did: one manifest record per converted file, one error line per failure."""
+
+    records: list
+    errors: list
+
+    @property
+    def ok(self) -> bool:
+        return not self.errors
+
+
+def file_key(seed: int, name: str):
+    """PRNG key of one input: folded from the seed and a CRC-32 of the file name."""
+    return jax.random.fold_in(jax.random.PRNGKey(seed), zlib.crc32(name.encode()) & 0x7FFFFFFF)
+
+
+def noise_profile_tag(shot, read, cfa_pattern) -> np.ndarray:
+    """DNG NoiseProfile (S, O) per colour plane R, G, B from per-tile-position parameters."""
+    shot, read, cfa = np.asarray(shot, np.float64), np.asarray(read, np.float64), np.asarray(cfa_pattern)
+    return np.stack([[shot[cfa == c].mean(), read[cfa == c].mean()] for c in range(3)])
+
+
+def lens_shading_for(profile, height: int, width: int):
+    """(gain planes (4, H/2, W/2), OpcodeList2 bytes rescaled to this size) from the profile's
+    lens-shading opcodes; ValueError if the profile has none."""
+    from g2r_jax.sensor.shading import rescale_opcode_list, shading_gain_planes
+
+    lists = dict(profile.info.opcode_lists)
+    if "OpcodeList2" not in lists:
+        raise ValueError(f"profile {profile.info.name!r} has no lens-shading opcodes (OpcodeList2)")
+    data = rescale_opcode_list(bytes.fromhex(lists["OpcodeList2"]), None, (height, width), shading_only=True)
+    gain = shading_gain_planes({"OpcodeList2": data}, height, width, tuple(np.asarray(profile.cfa_pattern)))
+    return gain, data
+
+
+def dng_info_for(profile, metadata: dict, height: int, width: int, *, noise: bool,
+                 opcode_list2: bytes | None = None) -> DngInfo:
+    """The DNG tags of one simulated image: the camera's tags plus what was sampled (and the
+    lens-shading OpcodeList2 when its inverse was applied)."""
+    colour, info = profile.colour, profile.info
+    shot, read = metadata["noise_shot"], metadata["noise_read"]
+    has_noise = noise and float(np.max(np.abs(shot))) + float(np.max(np.abs(read))) > 0
+    return DngInfo(
+        width=width, height=height, cfa_pattern=tuple(int(c) for c in np.asarray(profile.cfa_pattern)),
+        black_level=np.asarray(profile.black_level, np.float64), white_level=float(profile.white_level),
+        unique_camera_model=info.unique_camera_model, make=info.make or "g2r_jax", model=info.model or info.name,
+        **colour.dng_tags(),   # each matrix set with its own illuminant, in the model's order
+        analog_balance=np.asarray(colour.analog_balance, np.float64),
+        as_shot_neutral=np.asarray(metadata["neutral"], np.float64),
+        baseline_exposure=float(profile.baseline_exposure),
+        noise_profile=noise_profile_tag(shot, read, profile.cfa_pattern) if has_noise else None,
+        iso=float(np.round(metadata["iso"])),
+        opcode_lists={"OpcodeList2": opcode_list2} if opcode_list2 else {})
+
+
+def _transfer_for(path: Path, transfer: str) -> str:
+    if transfer != "auto":
+        return transfer
+    return "linear" if path.suffix.lower() == ".exr" else "srgb"
+
+
+def _load(path: Path, crop_odd: bool):
+    from g2r_jax.io import images
+
+    array = images.read_image_uint8(path)
+    if array is None:
+        array, _ = images.read_image(path)
+    height, width = array.shape[:2]
+    if height % 2 or width % 2:
+        if not crop_odd:
+            raise DngError(path, f"odd image size {width}x{height}: a 2x2 CFA needs even sizes "
+                                 f"(use --crop-odd to drop the last row/column)")
+        array = array[: height - height % 2, : width - width % 2]
+    if array.shape[0] < 2 or array.shape[1] < 2:
+        raise DngError(path, f"image too small ({width}x{height})")
+    return np.ascontiguousarray(array)
+
+
+BUCKET_STEP = 64          # bucket sides are multiples of this
+MAX_PADDING_FACTOR = 4.0  # an image shares a bucket of at most this many times its own area
+
+
+def _probe_size(path: Path):
+    """(height, width) from the file header (no decoding), None when unknown."""
+    try:
+        from PIL import Image
+
+        with Image.open(path) as image:
+            width, height = image.size
+        return height, width
+    except Exception:  # noqa: BLE001 - unknown sizes get an exact-size bucket when decoded
+        return None
+
+
+def plan_buckets(sizes):
+    """Padded shapes for a set of (h, w): the largest sizes first, each reusing an existing
+    bucket that holds it at most `MAX_PADDING_FACTOR` times its area, else opening one rounded
+    up to `BUCKET_STEP`. A compiled program per bucket, not per size (padding costs element-wise
+    work; a compilation costs seconds)."""
+    buckets = []
+    for height, width in sorted(set(sizes), key=lambda s: (-s[0] * s[1], s)):
+        if not any(h >= height and w >= width and h * w <= MAX_PADDING_FACTOR * height * width for h, w in buckets):
+            buckets.append((-(-height // BUCKET_STEP) * BUCKET_STEP, -(-width // BUCKET_STEP) * BUCKET_STEP))
+    return buckets
+
+
+def bucket_for(shape, buckets):
+    """The smallest planned bucket holding `shape` within the padding factor, else `shape`."""
+    height, width = shape
+    fits = [(h * w, (h, w)) for h, w in buckets
+            if h >= height and w >= width and h * w <= MAX_PADDING_FACTOR * height * width]
+    return min(fits)[1] if fits else (height, width)
+
+
+_COMPILED = {}
+
+
+def _batched_unprocess(options: ConvertOptions, transfer: str, with_neutral: bool):
+    """One jitted `unprocess_batch` per option set (jax caches the compiled code per shape).
+
+    `unprocess_batch` gives every image the same bytes whatever batch it falls in, so outputs do
+    not depend on the batch size, on padding, or on which engine or chunk converted a file."""
+    signature = (options.noise, options.effects, options.recipe, transfer, with_neutral, options.iso is not None,
+                 options.lens_shading, options.colour)
+
+    if signature not in _COMPILED:
+        def batch(keys, images, profile, neutrals, iso, lens_gain, valid_shapes):
+            return unprocess_batch(keys, images, profile, transfer=transfer, noise=options.noise, valid_shapes=valid_shapes,
+                                   effects=options.effects, recipe=options.recipe, colour=options.colour,
+                                   neutral=neutrals if with_neutral else None,
+                                   iso=iso if options.iso is not None else None,
+                                   lens_gain=lens_gain if options.lens_shading else None)
+
+        _COMPILED[signature] = jax.jit(batch)
+    return _COMPILED[signature]
+
+
+def _manifest_record(path, output, metadata, seed):
+    return {"input": str(path), "output": str(output),
+            "neutral": [round(float(v), 8) for v in np.asarray(metadata["neutral"])],
+            "xy": [round(float(v), 8) for v in np.asarray(metadata["xy"])],
+            "cct": round(float(metadata["cct"]), 3), "iso": round(float(metadata["iso"]), 3),
+            "exposure_gain": round(float(metadata["exposure_gain"]), 6), "seed": seed}
+
+
+def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOptions | None = None,
+                  on_error=None, write_manifest: bool = True) -> ConvertResult:
+    """Convert image files into DNGs `out_dir/<stem>.dng` and write `out_dir/manifest.jsonl`.
+
+    **Arguments:** `inputs`: image paths (already expanded, in the order rows of `neutrals`
+    apply); `profile`: a SensorProfile; `out_dir`; `neutrals`: optional (N, 3) camera neutrals,
+    row i for input i; `options`: `ConvertOptions`; `on_error`: called with each error line;
+    `write_manifest`: False leaves the manifest to the caller (a chunk of a distributed run).
+
+    **Returns:** `ConvertResult` (records in input order, error lines).
+    """
+    from g2r_jax.io.dng_write import write_dng_bytes
+
+    options = options or ConvertOptions()
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    inputs = [Path(p) for p in inputs]
+    records, errors = {}, []
+    report = (lambda line: (errors.append(line), on_error and on_error(line)))
+
+    stems = {}
+    for path in inputs:
+        stems.setdefault(path.stem, []).append(path)
+    duplicates = {s for s, paths in stems.items() if len(paths) > 1}
+
+    progress = None
+    if options.progress:
+        from tqdm import tqdm
+        progress = tqdm(total=len(inputs), unit="image", desc="g2r-convert")
+
+    lens = {}
+
+    def lens_for(height, width):
+        if (height, width) not in lens:
+            lens[(height, width)] = lens_shading_for(profile, height, width)
+        return lens[(height, width)]
+
+    if options.lens_shading:
+        lens_shading_for(profile, 2, 2)  # fail early, before any file, if the profile has no opcodes
+
+    def write(index, path, mosaic, metadata):
+        output = out_dir / f"{path.stem}.dng"
+        try:
+            opcodes = lens_for(*mosaic.shape)[1] if options.lens_shading else None
+            info = dng_info_for(profile, metadata, mosaic.shape[0], mosaic.shape[1], noise=options.noise,
+                                opcode_list2=opcodes)
+            atomic_write_bytes(output, write_dng_bytes(np.asarray(mosaic), info, where=output))
+        except DngError:
+            raise
+        except Exception as error:  # noqa: BLE001 - name the input whatever went wrong
+            raise DngError(path, f"writing {output} failed: {type(error).__name__}: {error}") from error
+        return index, _manifest_record(path, output, metadata, options.seed)
+
+    with futures.ThreadPoolExecutor(max(1, options.workers)) as pool:
+        def submit_load(i):
+            return pool.submit(_load, inputs[i], options.crop_odd)
+
+        window = max(2 * options.batch_size, options.workers)
+        loading = {i: submit_load(i) for i in range(min(window, len(inputs)))}
+        writing = []
+        # Images are zero-padded to a few bucket shapes (bit-identical output: `valid_shapes`),
+        # except with per-size lens gains or a noise correlation kernel, which see the padding.
+        bucketing = not options.lens_shading and getattr(profile.noise, "correlation_kernel", None) is None
+        sizes = [size for size in map(_probe_size, inputs) if size] if bucketing else []
+        buckets = plan_buckets([(h - h % 2, w - w % 2) for h, w in sizes])
+        pending = {}   # batch group (bucket, dtype, transfer) -> [(index, image)] waiting for partners
+        in_flight = []  # batches dispatched to the device, handed to the writers one batch later
+        next_to_load = len(loading)
+
+        def hand_over(batch, mosaics, metadata):
+            mosaics = np.asarray(mosaics)   # waits for this batch only: the next one is already queued
+            metadata = {k: np.asarray(v) for k, v in metadata.items()}
+            for j, (index, image) in enumerate(batch):
+                mosaic = mosaics[j, :image.shape[0], :image.shape[1]]
+                writing.append(pool.submit(write, index, inputs[index], mosaic, {k: v[j] for k, v in metadata.items()}))
+            while len(writing) > window:    # bounded memory: writers keep up or the compute waits
+                _collect(writing.pop(0), inputs, records, report, progress)
+
+        def group_of(path, image):
+            shape = bucket_for(image.shape[:2], buckets) if bucketing else image.shape[:2]
+            return shape, image.dtype.str, _transfer_for(path, options.transfer)
+
+        def flush(group):
+            batch = pending.pop(group, [])
+            if not batch:
+                return
+            shape, _, transfer = group
+            count = len(batch)
+            padded = batch + [batch[-1]] * (options.batch_size - count) if count < options.batch_size else batch
+            keys = jnp.stack([file_key(options.seed, inputs[i].name) for i, _ in padded])
+            stacked = np.zeros((len(padded),) + tuple(shape) + padded[0][1].shape[2:], padded[0][1].dtype)
+            for j, (_, image) in enumerate(padded):
+                stacked[j, :image.shape[0], :image.shape[1]] = image
+            images = jnp.asarray(stacked)
+            valid_shapes = jnp.asarray([image.shape[:2] for _, image in padded], jnp.int32)
+            with_neutral = neutrals is not None
+            neutral_rows = (jnp.asarray(np.stack([neutrals[i] for i, _ in padded]), jnp.float32) if with_neutral
+                            else jnp.ones((len(padded), 3), jnp.float32))
+            iso = jnp.asarray(options.iso if options.iso is not None else 0.0, jnp.float32)
+            lens_gain = (jnp.asarray(lens_for(images.shape[1], images.shape[2])[0]) if options.lens_shading
+                         else jnp.ones((), jnp.float32))
+            mosaics, metadata = _batched_unprocess(options, transfer, with_neutral)(keys, images, profile, neutral_rows,
+                                                                                     iso, lens_gain, valid_shapes)
+            in_flight.append((batch, mosaics, metadata))   # asynchronous: decoding goes on meanwhile
+            if len(in_flight) > 1:
+                hand_over(*in_flight.pop(0))
+
+        for index in range(len(inputs)):
+            path = inputs[index]
+            try:
+                if path.stem in duplicates:
+                    raise DngError(path, f"another input has the same name stem {path.stem!r}; outputs would collide")
+                image = loading.pop(index).result()
+            except Exception as error:  # noqa: BLE001 - every per-file failure is reported, the batch goes on
+                loading.pop(index, None)
+                report(str(error) if isinstance(error, DngError) else f"{path}: {type(error).__name__}: {error}")
+                if progress:
+                    progress.update(1)
+                image = None
+            if next_to_load < len(inputs):
+                loading[next_to_load] = submit_load(next_to_load)
+                next_to_load += 1
+            if image is None:
+                continue
+            group = group_of(path, image)
+            pending.setdefault(group, []).append((index, image))
+            if len(pending[group]) == options.batch_size:
+                flush(group)
+            for done in [w for w in writing if w.done()]:
+                writing.remove(done)
+                _collect(done, inputs, records, report, progress)
+        for group in list(pending):
+            flush(group)
+        while in_flight:
+            hand_over(*in_flight.pop(0))
+        for done in writing:
+            _collect(done, inputs, records, report, progress)
+    if progress:
+        progress.close()
+    ordered = [records[i] for i in sorted(records)]
+    if write_manifest and ordered:   # a run that wrote nothing leaves no (empty) manifest
+        write_manifest_file(out_dir, ordered)
+    return ConvertResult(records=ordered, errors=errors)
+
+
+def write_manifest_file(out_dir, records) -> None:
+    """`out_dir/manifest.jsonl`: one JSON record per converted file, in input order."""
+    manifest = "".join(json.dumps(r) + "\n" for r in records)
+    atomic_write_bytes(Path(out_dir) / "manifest.jsonl", manifest.encode())
+
+
+def _collect(future, inputs, records, report, progress):
+    try:
+        index, record = future.result()
+        records[index] = record
+    except Exception as error:  # noqa: BLE001
+        report(str(error) if isinstance(error, DngError) else f"{type(error).__name__}: {error}")
+    if progress:
+        progress.update(1)

@@ -1,0 +1,1 @@
+"""Scene illuminants as camera neutrals: `distributions` (Gaussian + hull, mixture, CCT locus)."""

@@ -1,0 +1,244 @@
+"""Fitting a SensorProfile from the tags of real DNGs (or from a list of measured illuminants).
+
+Tags alone are enough: colour matrices and calibration illuminants, CFA layout and levels,
+as-shot neutrals (the illuminant population), NoiseProfile with ISO (the noise model) and the
+lens-shading opcode lists. Where the matrices differ from file to file (phones often write a
+per-shot matrix), the CCT-interpolated pair that best explains them is fitted with optimistix.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from g2r_jax.colour import dng_model as _dng
+from g2r_jax.runtime.x64 import enable_x64
+from g2r_jax.illuminants import distributions as _illuminants
+from g2r_jax import sensor as _sensor
+from g2r_jax.io.dng_info import DngInfo, DngError
+from g2r_jax.profile.schema import ProfileInfo, SensorProfile, parse_cfa
+
+
+def colour_model_from_info(info: DngInfo, dtype=np.float32) -> _dng.DngColourModel:
+    """The DNG colour model of one file's tags (raises DngError naming the file)."""
+    if not info.color_matrices:
+        raise DngError(info.path, "no ColorMatrix tags: the camera's colour cannot be modelled")
+    try:
+        return _dng.DngColourModel.from_tags(info.calibration_illuminants, info.color_matrices,
+                                             info.camera_calibrations, info.forward_matrices,
+                                             info.analog_balance, dtype=dtype,
+                                             illuminant_data=getattr(info, "illuminant_data", ()))
+    except ValueError as error:
+        raise DngError(info.path, str(error)) from None
+
+
+def as_shot_neutral(info: DngInfo) -> np.ndarray | None:
+    """The file's as-shot neutral (G = 1): AsShotNeutral, or AsShotWhiteXY through the model."""
+    if info.as_shot_neutral is not None:
+        neutral = np.asarray(info.as_shot_neutral, np.float64)
+        return neutral / neutral[1]
+    if info.as_shot_white_xy is not None:
+        model = colour_model_from_info(info, np.float64)
+        return np.asarray(_dng.xy_to_camera_neutral(jnp.asarray(info.as_shot_white_xy, jnp.float64), model))
+    return None
+
+
+def check_file_colour(info: DngInfo) -> DngInfo:
+    """Per-file check before any folder-wide fit: this file's colour model and the white point of
+    its as-shot neutral (the DNG fixed point, spec 'Colour') must solve to a chromaticity. A solver
+    failure or a non-finite result raises DngError naming this file, so one bad file never reaches
+    the solvers shared by the folder (`fit_color_matrix_pair`)."""
+    try:
+        with enable_x64():
+            model = colour_model_from_info(info, np.float64)
+            neutral = as_shot_neutral(info)
+            if neutral is None:
+                return info
+            xy, _ = _dng.camera_neutral_to_xy(jnp.asarray(neutral), model)
+            xy = np.asarray(xy, np.float64)
+            matrix = np.asarray(_dng.matrix_XYZ_to_camera(jnp.asarray(xy), model))
+    except DngError:
+        raise
+    except Exception as error:  # noqa: BLE001 - solver/XLA errors become one line about this file
+        raise DngError(info.path, "AsShotNeutral with the colour matrices: the white-point solver fails "
+                                  f"({type(error).__name__})") from error
+    if not (np.all(np.isfinite(xy)) and 0 < xy[0] < 1 and 0 < xy[1] < 1 and xy.sum() < 1
+            and np.all(np.isfinite(matrix))):
+        raise DngError(info.path, "AsShotNeutral with the colour matrices: no valid white point")
+    return info
+
+
+def levels_from_infos(infos) -> tuple[np.ndarray, float, str | None]:
+    """The levels a profile holds: the median black level per CFA tile position and the median
+    white level over the files (per-file levels are normal for cameras that measure black from
+    masked pixels per shot). Returns (black (4,), white, note) where `note` is one line when the
+    files' levels differ, else None."""
+    blacks = np.stack([np.resize(np.asarray(i.black_level, np.float64).reshape(-1), 4) for i in infos])
+    whites = np.array([float(i.white_level) for i in infos])
+    notes = []
+    if np.ptp(blacks, axis=0).max() > 0:
+        low, high = np.argmin(blacks.mean(axis=1)), np.argmax(blacks.mean(axis=1))
+        notes.append(f"black levels differ between files ({blacks.min():g} to {blacks.max():g} DN; lowest in "
+                     f"{Path(infos[low].path).name}, highest in {Path(infos[high].path).name})")
+    if np.ptp(whites) > 0:
+        notes.append(f"white levels differ between files ({whites.min():g} in {Path(infos[int(np.argmin(whites))].path).name}"
+                     f" to {whites.max():g} in {Path(infos[int(np.argmax(whites))].path).name})")
+    note = ("; ".join(notes) + "; the profile holds the median of each") if notes else None
+    return np.median(blacks, axis=0), float(np.median(whites)), note
+
+
+def _same_matrices(infos) -> bool:
+    """Do all files hold the same matrices (compared per illuminant, whatever the tag order)?"""
+    with enable_x64():
+        models = [colour_model_from_info(i, np.float64) for i in infos]
+    first = np.asarray(models[0].color_matrix)
+    return all(m.calibration_illuminants == models[0].calibration_illuminants and
+               np.allclose(np.asarray(m.color_matrix), first, atol=1e-6) for m in models)
+
+
+PAIR_REGULARISATION = 1e-3   # weight of the pull towards the reference file's matrices
+
+
+def fit_color_matrix_pair(infos, dtype=np.float32) -> _dng.DngColourModel:
+    """One set of ColorMatrices (one per calibration illuminant) explaining files whose matrices differ.
+
+    For each file i, its effective XYZtoCamera at its own as-shot white (from its own tags) is
+    the target; the shared matrices, interpolated at each file's white with the DNG weights
+    (mired for two illuminants, the SDK's triple weights for three), are fitted by
+    Levenberg-Marquardt (optimistix) over all files. Each fitted matrix keeps its illuminant.
+    """
+    with enable_x64():
+        targets, weights = [], []
+        for info in infos:
+            model = colour_model_from_info(info, np.float64)
+            neutral = as_shot_neutral(info)
+            neutral = np.ones(3) if neutral is None else neutral
+            xy, _ = _dng.camera_neutral_to_xy(jnp.asarray(neutral), model)
+            weights.append(np.asarray(_dng.illuminant_weights(xy, model)))
+            targets.append(np.asarray(_dng.matrix_XYZ_to_camera(xy, model)))
+        targets, weights = jnp.asarray(np.stack(targets)), jnp.asarray(np.stack(weights))
+        reference = colour_model_from_info(infos[0], np.float64)
+
+        start = reference.color_matrix
+
+        def residuals(matrices, _):
+            predicted = jnp.einsum("fk,kij->fij", weights, matrices)
+            # Tikhonov term towards the reference file's matrices: files shot at nearly one white
+            # leave the matrices' difference undetermined, and the solver must not wander along it
+            # (fuzzing found a fitted matrix with a negative response to white this way).
+            return jnp.concatenate([(predicted - targets).reshape(-1),
+                                    PAIR_REGULARISATION * (matrices - start).reshape(-1)])
+
+        solver = optx.LevenbergMarquardt(rtol=1e-10, atol=1e-12)
+        solution = optx.least_squares(residuals, solver, start, max_steps=200)
+        fitted = np.asarray(solution.value)
+    tags = reference.dng_tags()   # the reference file's sets, in the model's order
+    n = len(tags["calibration_illuminants"])
+    return _dng.DngColourModel.from_tags(tags["calibration_illuminants"], list(fitted[:n]),
+                                         tags["camera_calibrations"], tags["forward_matrices"],
+                                         infos[0].analog_balance, dtype=dtype,
+                                         illuminant_data=tags["illuminant_data"])
+
+
+def noise_from_infos(infos, cfa_pattern, dtype=np.float32) -> _sensor.NoiseModel:
+    """NoiseModel from the files' NoiseProfile tags, grouped by ISO (median per ISO).
+
+    NoiseProfile holds (S, O) per colour plane (or one pair for all), in normalised units
+    (DNG spec 1.6, NoiseProfile): variance = S x + O; mapped to tile positions by the CFA.
+    Files without a usable NoiseProfile (missing, all zero, a term <= 0) get their noise
+    measured from their own pixels, with a warning (`g2r_jax.noise_fallback`).
+    """
+    from g2r_jax.sensor.noise.fallback import noise_and_source
+
+    return noise_and_source(infos, cfa_pattern, dtype)[0]
+
+
+def illuminant_model_for(chromaticities, colour_model, kind: str = "auto", seed: int = 0,
+                         dtype=np.float32) -> _illuminants.IlluminantModel:
+    """Choose and fit the illuminant model.
+
+    `kind`: 'gaussian' (published), 'mixture' (BIC-selected), 'locus' (single DNG), or 'auto':
+    the Gaussian with its hull when at least 3 distinct, non-collinear illuminants are given,
+    otherwise the single-DNG locus model (supplement S3).
+    """
+    points = np.unique(np.round(np.asarray(chromaticities, np.float64).reshape(-1, 2), 9), axis=0)
+    if kind == "locus":
+        return _illuminants.fit_locus(colour_model, dtype=dtype)
+    enough = len(points) >= 3
+    if enough:
+        try:
+            _illuminants.convex_hull_halfplanes(points)
+        except ValueError:
+            enough = False
+    if kind == "auto":
+        kind = "gaussian" if enough else "locus"
+        if kind == "locus":
+            return _illuminants.fit_locus(colour_model, dtype=dtype)
+    if not enough:
+        raise ValueError(f"the {kind} illuminant model needs at least 3 distinct, non-collinear "
+                         f"illuminants; got {len(points)} (use the locus model)")
+    if kind == "gaussian":
+        return _illuminants.fit_gaussian(chromaticities, dtype=dtype)
+    if kind == "mixture":
+        return _illuminants.fit_mixture(chromaticities, seed=seed, dtype=dtype)
+    raise ValueError(f"unknown illuminant model {kind!r}")
+
+
+def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model: str = "auto",
+                noise: _sensor.NoiseModel | None = None, chromaticities=None, provenance: str = "",
+                seed: int = 0, dtype=np.float32) -> SensorProfile:
+    """Fit a SensorProfile from DNG tags.
+
+    **Arguments:** `infos`: tags of the camera's DNGs (`g2r_jax.io.dng_read.read_dng_info`);
+    `illuminant_model`: see `illuminant_model_for`; `noise`: a NoiseModel overriding the files'
+    NoiseProfile tags (e.g. from a calibration table); `chromaticities`: (N, 2) illuminants in
+    (r/g, b/g) to use instead of the files' as-shot neutrals; `provenance`: where the numbers
+    came from (stored in the profile).
+
+    **Returns:** a `SensorProfile`. Raises DngError for files without usable colour tags.
+    """
+    if not infos:
+        raise ValueError("no DNG files to fit a profile from")
+    reference = infos[0]
+    for info in infos:
+        if not info.color_matrices:
+            raise DngError(info.path, "no ColorMatrix tags: the camera's colour cannot be modelled")
+        if not info.is_cfa:
+            raise DngError(info.path, "LinearRaw (demosaiced) DNG: no CFA layout to simulate")
+        if sorted(info.calibration_illuminants) != sorted(reference.calibration_illuminants):
+            raise DngError(info.path, f"calibration illuminants {info.calibration_illuminants} differ from "
+                                      f"{reference.path}'s {reference.calibration_illuminants}")
+    try:
+        cfa = parse_cfa(reference.cfa_pattern)
+    except ValueError as error:
+        raise DngError(reference.path, str(error)) from None
+    colour_model = (colour_model_from_info(reference, dtype) if _same_matrices(infos)
+                    else fit_color_matrix_pair(infos, dtype))
+    if chromaticities is None:
+        neutrals = [n for n in (as_shot_neutral(i) for i in infos) if n is not None]
+        chromaticities = (_illuminants.neutral_to_chromaticity(np.stack(neutrals)) if neutrals
+                          else np.zeros((0, 2)))
+    illuminants = illuminant_model_for(chromaticities, colour_model, illuminant_model, seed, dtype)
+    noise_source = ""
+    if noise is None:
+        from g2r_jax.sensor.noise.fallback import noise_and_source
+
+        noise, noise_source = noise_and_source(infos, cfa, dtype)
+    opcodes = tuple(sorted((k, bytes(v).hex()) for k, v in (reference.opcode_lists or {}).items()))
+    info = ProfileInfo(name=name, unique_camera_model=reference.unique_camera_model or reference.model or name,
+                       make=reference.make, model=reference.model,
+                       calibration_illuminants=colour_model.calibration_illuminants,   # the model's order
+                       provenance=" ".join(filter(None, [provenance or f"fitted by g2r_jax from {len(infos)} DNG file(s)",
+                                                         noise_source and f"({noise_source})"])),
+                       opcode_lists=opcodes)
+    black, white, _ = levels_from_infos(infos)   # the CLI reports the note
+    baseline = float(np.median([i.baseline_exposure for i in infos]))
+    return SensorProfile(
+        cfa_pattern=jnp.asarray(cfa, jnp.int32), black_level=jnp.asarray(black, dtype),
+        white_level=jnp.asarray(white, dtype),
+        baseline_exposure=jnp.asarray(baseline, dtype), colour=colour_model, illuminants=illuminants,
+        exposure=_sensor.fixed_exposure(dtype), noise=noise, effects=_sensor.no_effects(dtype), info=info)

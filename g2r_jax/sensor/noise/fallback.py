@@ -1,0 +1,146 @@
+"""The noise model of a profile fitted from DNGs: NoiseProfile tags where usable, otherwise the
+noise measured from the files' own pixels, and always a statement of where it came from.
+
+Issue 8: DNGs without NoiseProfile (e.g. Canon 350D conversions) or with an all-zero one (Nexus
+5X) gave a profile with no noise at all, at ISO 100 whatever the files said; a read-noise term of
+0 (Samsung S6 edge) was used as is. Here, per file:
+
+- `ok`: NoiseProfile with S > 0 and O > 0 for every plane: used (median per ISO, as before).
+- `missing`, `zero` (all terms 0) or `degenerate` (a term <= 0 or not finite): the noise level
+  function is measured from the file's pixels where LibRaw decodes them
+  (`noise_estimation.estimate_noise_level_function`) and fitted by S x + O per CFA position
+  (`noise_extension.fit_shot_read`); a degenerate tag whose pixels cannot be decoded is kept
+  with O raised to the rounding variance 1/12 DN^2 (the least noise a quantised raw has).
+- An ISO with tag rows uses them; measured rows fill ISOs without. Every file's ISO is kept
+  (files without an ISO count as 100). Nothing usable at all: a noiseless model at the files'
+  ISOs, with a loud warning.
+
+One warning line names the files concerned; `source` (for the profile's provenance) says where
+the noise came from.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import jax.numpy as jnp
+import numpy as np
+
+from g2r_jax.sensor.noise import estimation as _estimation
+from g2r_jax.sensor.noise import extension as _extension
+from g2r_jax import sensor as _sensor
+
+
+def classify_noise_profile(info) -> str:
+    """'ok', 'missing', 'zero' or 'degenerate' for one file's NoiseProfile tag."""
+    if info.noise_profile is None:
+        return "missing"
+    pairs = np.asarray(info.noise_profile, np.float64).reshape(-1)
+    if pairs.size == 0:
+        return "missing"
+    if np.all(pairs == 0):
+        return "zero"
+    if not np.all(np.isfinite(pairs)) or np.any(pairs <= 0):
+        return "degenerate"
+    return "ok"
+
+
+def _tag_per_position(info, cfa_pattern) -> np.ndarray:
+    pairs = np.asarray(info.noise_profile, np.float64).reshape(-1, 2)
+    per_colour = np.repeat(pairs, 3, axis=0) if len(pairs) == 1 else pairs[:3]
+    return per_colour[np.asarray(cfa_pattern)]
+
+
+def _levels(info):
+    black = np.resize(np.asarray(info.black_level, np.float64).reshape(-1), 4)
+    return black, float(info.white_level)
+
+
+def measure_from_pixels(info, *, n_bootstrap: int = 50):
+    """(shot (4,), read (4,)) per tile position measured from one DNG's own pixels, or None with
+    the reason (pixels not decodable, too few flat regions)."""
+    from g2r_jax.io.dng_read import read_dng_pixels
+
+    try:
+        mosaic = read_dng_pixels(info.path, info)
+    except Exception as error:  # noqa: BLE001 - DngError and anything LibRaw raises: reported, not fatal
+        return None, str(getattr(error, "problem", error))
+    from g2r_jax.sensor.noise.estimation import to_normalised_planes
+
+    black, white = _levels(info)
+    planes = to_normalised_planes(mosaic, black, white)
+    estimate = _estimation.estimate_noise_level_function(planes, clip_low=-black / (white - black),
+                                                         n_bootstrap=n_bootstrap)
+    shot, read = _extension.fit_shot_read(estimate, floor_variance=0.0)
+    if not (np.all(np.isfinite(shot)) and np.all(np.isfinite(read))):
+        return None, "too few flat regions to measure the noise"
+    # rounding to DN is part of the measured variance and of every raw: keep it in `read`
+    read = np.maximum(read, _estimation.quantisation_variance(black, white))
+    return (shot, read), ""
+
+
+def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = True):
+    """(NoiseModel, source) for a profile fitted from `infos`; see the module docstring.
+
+    `measure=False` skips the pixel measurement (tags only). `source` is one sentence for the
+    profile's provenance."""
+    tag_rows, measured_rows, floored_rows, kinds, problems = {}, {}, {}, {}, []
+    for info in infos:
+        iso = float(info.iso) if info.iso else 100.0
+        kind = classify_noise_profile(info)
+        kinds.setdefault(kind, []).append(Path(info.path).name or "<unnamed>")
+        if kind == "ok":
+            tag_rows.setdefault(iso, []).append(_tag_per_position(info, cfa_pattern))
+            continue
+        measured, reason = measure_from_pixels(info) if measure else (None, "pixels not measured")
+        if measured is not None:
+            measured_rows.setdefault(iso, []).append(np.stack(measured, axis=1))
+            continue
+        problems.append((Path(info.path).name, reason))
+        if kind == "degenerate":
+            table = _tag_per_position(info, cfa_pattern)
+            black, white = _levels(info)
+            table[:, 0] = np.maximum(np.nan_to_num(table[:, 0]), 0.0)
+            table[:, 1] = np.maximum(np.nan_to_num(table[:, 1]), _estimation.quantisation_variance(black, white))
+            floored_rows.setdefault(iso, []).append(table)
+    all_isos = sorted({float(i.iso) if i.iso else 100.0 for i in infos})
+    rows = {iso: tag_rows[iso] for iso in tag_rows}
+    for iso, values in measured_rows.items():
+        rows.setdefault(iso, values)
+    for iso, values in floored_rows.items():
+        rows.setdefault(iso, values)
+    bad = {k: v for k, v in kinds.items() if k != "ok"}
+    n_measured = sum(len(v) for iso, v in measured_rows.items() if iso not in tag_rows)
+    n_floored = sum(len(v) for iso, v in floored_rows.items() if iso not in tag_rows and iso not in measured_rows)
+    if bad:
+        listing = "; ".join(f"{kind}: {', '.join(names)}" for kind, names in sorted(bad.items()))
+        by_reason = {}
+        for name, reason in problems:
+            by_reason.setdefault(reason, []).append(name)
+        why = "; ".join(f"{', '.join(names)}: {reason}" for reason, names in by_reason.items())
+        outcome = "noise measured from their pixels" if not problems else f"could not measure all of them ({why})"
+        if not rows:
+            outcome = f"no noise could be measured ({why}); the profile simulates NO NOISE"
+        warnings.warn(f"no usable NoiseProfile ({listing}): {outcome}", stacklevel=2)
+    if not rows:
+        isos = np.asarray(all_isos)
+        model = _sensor.NoiseModel(iso=jnp.asarray(isos, dtype), shot=jnp.zeros((len(isos), 4), dtype),
+                                   read=jnp.zeros((len(isos), 4), dtype),
+                                   iso_range=jnp.asarray([isos.min(), isos.max()], dtype))
+        return model, "noise: NONE - no file has a usable NoiseProfile and none could be measured (no noise is simulated)"
+    isos = np.array(sorted(rows))
+    table = np.stack([np.median(np.stack(rows[i]), axis=0) for i in isos])
+    model = _sensor.NoiseModel(iso=jnp.asarray(isos, dtype), shot=jnp.asarray(table[..., 0], dtype),
+                               read=jnp.asarray(table[..., 1], dtype),
+                               iso_range=jnp.asarray([isos.min(), isos.max()], dtype))
+    parts = []
+    n_tags = sum(len(v) for v in tag_rows.values())
+    if n_tags:
+        parts.append(f"NoiseProfile tags of {n_tags} file(s)")
+    if n_measured:
+        parts.append(f"measured from the pixels of {n_measured} file(s) without a usable NoiseProfile "
+                     f"(g2r_jax.noise_estimation, S x + O per CFA position)")
+    if n_floored:
+        parts.append(f"degenerate NoiseProfile of {n_floored} file(s) with O raised to 1/12 DN^2")
+    return model, "noise: " + "; ".join(parts) + f" (ISO {', '.join(f'{i:g}' for i in isos)})"
