@@ -6,6 +6,11 @@ function is the caller's job, e.g. with a look-up table on `read_image_uint8`'s 
 'linear' for EXR. Alpha is dropped, grey becomes three equal channels, odd sizes are kept.
 Every unreadable input raises `DngError(path, problem)`, the project's generic file error.
 
+Before any decoding, the size the header claims is checked against a pixel budget of our own
+(`max_pixels`, 100 megapixels by default; the command's `--max-megapixels`), and a PNG's data is
+checked to hold every row it claims (`g2r_jax.io.image_headers`): memory follows the file's real
+data, and a truncated image is refused by name instead of being padded with zeros.
+
 Decoders: Pillow for PNG and JPEG, tifffile for TIFF (Pillow as a fallback for compressions
 tifffile cannot decode without imagecodecs, e.g. LZW, except 16-bit colour, which Pillow would cut
 to 8 bits), the OpenEXR package's `OpenEXR.File` API for EXR.
@@ -22,8 +27,10 @@ from typing import Iterable, Optional, Union
 import numpy as np
 
 from g2r_jax.io.dng_info import DngError
+from g2r_jax.io.image_headers import (DEFAULT_MAX_PIXELS, PNG_SIGNATURE, check_pixel_budget, check_png_complete,
+                                      claimed_size)
 
-__all__ = ["read_image", "read_image_uint8", "list_inputs",
+__all__ = ["read_image", "read_image_uint8", "list_inputs", "DEFAULT_MAX_PIXELS",
            "SRGB_EXTENSIONS", "EXR_EXTENSIONS", "IMAGE_EXTENSIONS"]
 
 SRGB_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
@@ -93,11 +100,22 @@ def _png_16bit(path: Path, rawmode: str) -> np.ndarray:
     return (hi.astype(np.uint16) << 8) | lo
 
 
-def _read_pillow(path: Path) -> tuple:
+def _allow_in_pillow(max_pixels) -> None:
+    """Our budget is checked before Pillow opens a file; Pillow's own lower limit (and its
+    'decompression bomb' message) must not stand in front of a budget the user raised."""
+    from PIL import Image
+
+    if Image.MAX_IMAGE_PIXELS is not None and (max_pixels is None or max_pixels > Image.MAX_IMAGE_PIXELS):
+        Image.MAX_IMAGE_PIXELS = max_pixels
+
+
+def _read_pillow(path: Path, max_pixels=DEFAULT_MAX_PIXELS) -> tuple:
     """(array uint8 or uint16 (H, W, 3), bits) via Pillow."""
     from PIL import Image
 
+    _allow_in_pillow(max_pixels)
     with Image.open(path) as im:
+        check_pixel_budget(path, im.size[0], im.size[1], max_pixels)
         rawmode = im.tile[0][3] if im.tile and len(im.tile[0]) > 3 else None
         rawmode = rawmode if isinstance(rawmode, str) else None
         fmt, mode = im.format, im.mode
@@ -122,7 +140,7 @@ def _read_pillow(path: Path) -> tuple:
 
 # ----------------------------------------------------------------------------- tifffile (TIFF)
 
-def _read_tiff(path: Path) -> tuple:
+def _read_tiff(path: Path, max_pixels) -> tuple:
     """(array uint8 or uint16 (H, W, 3), bits) via tifffile; first page only."""
     import tifffile
 
@@ -130,6 +148,10 @@ def _read_tiff(path: Path) -> tuple:
         if not tif.pages:
             raise DngError(path, "TIFF has no images")
         page = tif.pages.first
+        check_pixel_budget(path, int(page.imagewidth), int(page.imagelength), max_pixels)
+        end = max((int(o) + int(n) for o, n in zip(page.dataoffsets, page.databytecounts)), default=0)
+        if end > path.stat().st_size or (page.dataoffsets and not any(page.databytecounts)):
+            raise DngError(path, f"truncated: its image data ends at byte {end}, the file has {path.stat().st_size}")
         bits = int(np.max(np.atleast_1d(page.bitspersample)))
         photometric = int(page.photometric)
         if page.dtype is None or page.dtype.kind == "f":
@@ -149,7 +171,7 @@ def _read_tiff(path: Path) -> tuple:
         # Pillow decodes those too, but keeps only 8 bits of 16-bit colour: use it where lossless
         if bits == 16 and photometric == 2:
             raise DngError(path, f"cannot decode this 16-bit colour TIFF ({_short(failure)})")
-        return _read_pillow(path)
+        return _read_pillow(path, max_pixels)
     if separate and arr.ndim == 3:
         arr = np.moveaxis(arr, 0, -1)
     if arr.ndim == 3 and photometric in (0, 1):
@@ -169,11 +191,26 @@ def _read_tiff(path: Path) -> tuple:
 
 # ----------------------------------------------------------------------------- OpenEXR
 
-def _read_exr(path: Path) -> np.ndarray:
+def _exr_size(path: Path) -> tuple:
+    """(width, height) of an EXR's dataWindow, read from its header only."""
+    import OpenEXR
+
+    with OpenEXR.File(str(path), header_only=True) as exr:
+        (x0, y0), (x1, y1) = (np.asarray(corner).tolist() for corner in exr.header()["dataWindow"])
+    return int(x1) - int(x0) + 1, int(y1) - int(y0) + 1
+
+
+def _read_exr(path: Path, max_pixels=DEFAULT_MAX_PIXELS) -> np.ndarray:
     import OpenEXR
 
     from g2r_jax.io.native_stderr import captured_native_stderr
 
+    try:
+        with captured_native_stderr(lambda line: "(EXR_ERR" in line or "OpenEXR" in line):
+            width, height = _exr_size(path)
+    except Exception as exc:
+        raise DngError(path, f"cannot read EXR header, damaged or truncated ({_short(exc)})") from exc
+    check_pixel_budget(path, width, height, max_pixels)
     try:
         with captured_native_stderr(lambda line: "(EXR_ERR" in line or "OpenEXR" in line), \
                 OpenEXR.File(str(path), separate_channels=True) as exr:
@@ -219,12 +256,21 @@ def _read_exr(path: Path) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- public API
 
-def _read_integer(path: Path, ext: str) -> tuple:
+def _signature(path: Path) -> bytes:
+    with open(path, "rb") as handle:
+        return handle.read(8)
+
+
+def _read_integer(path: Path, ext: str, max_pixels=DEFAULT_MAX_PIXELS) -> tuple:
     """(uint8/uint16 (H, W, 3), bits) for PNG, JPEG or TIFF; DngError on any failure."""
     try:
         if ext in (".tif", ".tiff"):
-            return _read_tiff(path)
-        return _read_pillow(path)
+            return _read_tiff(path, max_pixels)
+        if _signature(path) == PNG_SIGNATURE:
+            check_png_complete(path, max_pixels)
+        elif ext in (".jpg", ".jpeg"):
+            check_pixel_budget(path, *claimed_size(path), max_pixels)
+        return _read_pillow(path, max_pixels)
     except DngError:
         raise
     except Exception as exc:
@@ -232,8 +278,11 @@ def _read_integer(path: Path, ext: str) -> tuple:
                              f"({type(exc).__name__}: {_short(exc)})") from exc
 
 
-def read_image(path: PathLike) -> tuple:
+def read_image(path: PathLike, max_pixels: Optional[int] = DEFAULT_MAX_PIXELS) -> tuple:
     """Read one image: (float32 (H, W, 3) values, encoding 'srgb' or 'linear').
+
+    An image larger than `max_pixels` (None: no budget) or whose data holds fewer rows than its
+    header claims raises `DngError` before it is decoded.
 
     PNG, JPEG, TIFF (8 or 16 bits): code values divided by 255 or 65535, encoding 'srgb'.
     EXR (half or float R, G, B; a single layer's X.R, X.G, X.B or a Y channel also work):
@@ -243,13 +292,13 @@ def read_image(path: PathLike) -> tuple:
     path = Path(path)
     ext = _check_file(path)
     if ext in EXR_EXTENSIONS:
-        return _read_exr(path), "linear"
-    arr, bits = _read_integer(path, ext)
+        return _read_exr(path, max_pixels), "linear"
+    arr, bits = _read_integer(path, ext, max_pixels)
     scale = np.float32(1.0 / (255.0 if bits == 8 else 65535.0))
     return arr.astype(np.float32) * scale, "srgb"
 
 
-def read_image_uint8(path: PathLike) -> Optional[np.ndarray]:
+def read_image_uint8(path: PathLike, max_pixels: Optional[int] = DEFAULT_MAX_PIXELS) -> Optional[np.ndarray]:
     """The (H, W, 3) uint8 code values when the file is an 8-bit PNG/JPEG/TIFF, else None.
 
     For a look-up-table sRGB decode downstream; 16-bit images and EXR give None.
@@ -258,7 +307,7 @@ def read_image_uint8(path: PathLike) -> Optional[np.ndarray]:
     ext = _check_file(path)
     if ext in EXR_EXTENSIONS:
         return None
-    arr, bits = _read_integer(path, ext)
+    arr, bits = _read_integer(path, ext, max_pixels)
     return arr if bits == 8 and arr.dtype == np.uint8 else None
 
 
