@@ -16,6 +16,7 @@ import numpy as np
 import optimistix as optx
 
 from g2r_jax.colour import dng_model as _dng
+from g2r_jax.colour.spectrum_locus import distance_outside_locus, is_light_chromaticity
 from g2r_jax.runtime.x64 import enable_x64
 from g2r_jax.illuminants import distributions as _illuminants
 from g2r_jax import sensor as _sensor
@@ -49,8 +50,10 @@ def as_shot_neutral(info: DngInfo) -> np.ndarray | None:
 
 def check_file_colour(info: DngInfo) -> DngInfo:
     """Per-file check before any folder-wide fit: this file's colour model and the white point of
-    its as-shot neutral (the DNG fixed point, spec 'Colour') must solve to a chromaticity. A solver
-    failure or a non-finite result raises DngError naming this file, so one bad file never reaches
+    its as-shot neutral (the DNG fixed point, spec 'Colour') must solve to the chromaticity of a
+    light: inside the spectrum locus, up to `spectrum_locus.LOCUS_MARGIN` (sodium lamps sit on the
+    locus, and a 3x3 matrix puts them slightly beyond it). A solver failure, a non-finite result or a
+    white point no light can have raises DngError naming this file, so one bad file never reaches
     the solvers shared by the folder (`fit_color_matrix_pair`)."""
     try:
         with enable_x64():
@@ -66,9 +69,11 @@ def check_file_colour(info: DngInfo) -> DngInfo:
     except Exception as error:  # noqa: BLE001 - solver/XLA errors become one line about this file
         raise DngError(info.path, "AsShotNeutral with the colour matrices: the white-point solver fails "
                                   f"({type(error).__name__})") from error
-    if not (np.all(np.isfinite(xy)) and 0 < xy[0] < 1 and 0 < xy[1] < 1 and xy.sum() < 1
-            and np.all(np.isfinite(matrix))):
+    if not (np.all(np.isfinite(xy)) and np.all(np.isfinite(matrix))):
         raise DngError(info.path, "AsShotNeutral with the colour matrices: no valid white point")
+    if not is_light_chromaticity(xy):
+        raise DngError(info.path, f"AsShotNeutral with the colour matrices: white point xy ({xy[0]:.3f}, {xy[1]:.3f}) "
+                                  f"is {distance_outside_locus(xy):.3f} outside the spectrum locus: no light has it")
     return info
 
 
