@@ -83,22 +83,21 @@ def _calibration_infos(path: Path):
     return [read_dng_info(path)]
 
 
-def _one_camera(infos, failures):
-    """Keep the largest group of files from one camera (model and calibration illuminants); report
-    the others as failures rather than mixing two cameras' colour in one profile."""
-    groups = {}
-    for info in infos:
-        # the set of illuminants, whatever the tag order (fit pairs each matrix with its own illuminant)
-        groups.setdefault((info.unique_camera_model, tuple(sorted(info.calibration_illuminants))), []).append(info)
-    if len(groups) <= 1:
-        return infos
-    keep = max(groups, key=lambda k: len(groups[k]))
-    for key, members in groups.items():
-        if key != keep:
-            failures += [f"{i.path}: a different camera ({key[0] or 'unnamed'}, calibration illuminants "
-                         f"{key[1]}) from the {len(groups[keep])} file(s) of {keep[0] or 'unnamed'} being fitted"
-                         for i in members]
-    return groups[keep]
+def _one_camera(infos, failures, quiet=False):
+    """Keep the files of one camera (`choose_camera`: the most files with decodable pixels); say
+    which and why, and report every other camera's files as failures rather than mixing two
+    cameras' colour in one profile."""
+    from g2r_jax.profile.fitting import choose_camera
+
+    kept, left_out, line = choose_camera(infos)
+    if line and not quiet:
+        print(f"g2r-fit-profile: note: {one_line(line)}", file=sys.stderr)
+    for key, members in left_out.items():
+        failures += [one_line(f"{i.path}: left out: a different camera ({key[0] or 'unnamed'}, calibration "
+                              f"illuminants {key[1]}) from the {len(kept)} file(s) of "
+                              f"{kept[0].unique_camera_model or kept[0].model or 'unnamed'} being fitted")
+                     for i in members]
+    return kept
 
 
 def _with_sensitivities(profile, path, camera, chromaticities, infos):
@@ -153,7 +152,7 @@ def body(args) -> int:
             except Exception as error:  # noqa: BLE001 - report and go on
                 failures.append(error_message(error) if str(path) in str(error) else
                                 one_line(f"{path}: {error_message(error)}"))
-        infos = _one_camera(infos, failures)
+        infos = _one_camera(infos, failures, getattr(args, "quiet", False))
         chromaticities = None
         source = f"{len(infos)} DNG file(s) from {', '.join(str(d) for d in args.dng_dirs)}"
     for line in failures:

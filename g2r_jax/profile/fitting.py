@@ -77,6 +77,48 @@ def check_file_colour(info: DngInfo) -> DngInfo:
     return info
 
 
+def camera_key(info: DngInfo) -> tuple:
+    """What makes two files the same camera for one profile: the camera model and the set of
+    calibration illuminants (whatever the tag order: the fit pairs each matrix with its own)."""
+    return (info.unique_camera_model or info.model or "", tuple(sorted(info.calibration_illuminants)))
+
+
+def choose_camera(infos: list[DngInfo]) -> tuple[list[DngInfo], dict, str | None]:
+    """The files of the one camera to fit when `infos` come from several.
+
+    Cameras are ranked by their number of files with decodable pixel data (a header-only file has
+    colour tags but neither noise nor levels to check), then by their number of files, then by
+    name, so the choice never depends on the order of the files.
+
+    **Returns:** (the chosen camera's files, {camera key: its files} for each camera left out, one
+    line saying which camera was chosen and why, or None when there was only one camera).
+    """
+    groups = {}
+    for info in infos:
+        groups.setdefault(camera_key(info), []).append(info)
+    if len(groups) <= 1:
+        return list(infos), {}, None
+
+    def decodable(members):
+        return sum(getattr(i, "pixel_data_problem", None) is None for i in members)
+
+    def describe(key):
+        members = groups[key]
+        return f"{key[0] or 'unnamed'} ({len(members)} file(s), {decodable(members)} with decodable pixels)"
+
+    ranked = sorted(groups, key=lambda k: (-decodable(groups[k]), -len(groups[k]), k))
+    keep, runner_up = ranked[0], ranked[1]
+    if decodable(groups[keep]) > decodable(groups[runner_up]):
+        why = "the most files with decodable pixels"
+    elif len(groups[keep]) > len(groups[runner_up]):
+        why = "as many files with decodable pixels as the next, and the most files"
+    else:
+        why = "a tie in decodable and in all files, settled by camera name"
+    line = (f"{len(groups)} cameras in the input; fitting {describe(keep)}: {why}; left out: "
+            + ", ".join(describe(k) for k in ranked[1:]))
+    return groups[keep], {k: groups[k] for k in ranked[1:]}, line
+
+
 def levels_from_infos(infos) -> tuple[np.ndarray, float, str | None]:
     """The levels a profile holds: the median black level per CFA tile position and the median
     white level over the files (per-file levels are normal for cameras that measure black from
