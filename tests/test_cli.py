@@ -126,8 +126,10 @@ def test_unknown_profile_is_one_line_and_debug_shows_the_traceback(tmp_path, cap
     assert convert(["--example", "--profile", "nikon_d1x", "-o", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "nikon_d1x" in err[0] and "unknown profile" in err[0]
-    with pytest.raises(Exception, match="unknown profile"):
-        convert(["--example", "--profile", "nikon_d1x", "-o", str(tmp_path), "--debug"])
+    broken = tmp_path / "broken.json"
+    broken.write_text("{")
+    with pytest.raises(Exception, match="broken.json: not valid JSON"):
+        convert(["--example", "--profile", str(broken), "-o", str(tmp_path / "out"), "--debug"])
 
 
 def test_fit_profile_from_a_folder_reports_bad_files_and_fits_the_good_ones(tmp_path, shared_data, capsys):

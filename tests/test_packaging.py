@@ -38,5 +38,7 @@ def test_shipped_profiles_found_from_a_checkout():
 def test_installed_layout_is_preferred(tmp_path, monkeypatch):
     package = tmp_path / "site" / "g2r_jax"
     (package / "profiles").mkdir(parents=True)
-    monkeypatch.setattr(profile_module, "__file__", str(package / "profile.py"))
-    assert profile_module._shipped_profiles_dir() == (package / "profiles").resolve()
+    from g2r_jax.profile import shipped
+
+    monkeypatch.setattr(shipped, "__file__", str(package / "profile" / "shipped.py"))
+    assert shipped._shipped_profiles_dir() == (package / "profiles").resolve()

@@ -9,6 +9,7 @@ code turns what matters in them into its own messages naming the file (`g2r_jax.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import logging
 import os
@@ -88,16 +89,28 @@ def quiet_libraries(name: str, debug: bool = False):
             root.removeHandler(handler)
 
 
-def run_command(name: str, body, argv, parser) -> int:
+def run_command(name: str, body, argv, parser, check=None) -> int:
     """Parse `argv`, run `body(args)`; print 'name: error: message' on failure (exit 2),
-    or the traceback too with --debug. `body` returns the exit code. Every command gets
-    `--no-compile-cache`; without it JAX's persistent compilation cache is on
-    (`g2r_jax.compile_cache`). XLA's deterministic GPU operations are requested
-    (`g2r_jax.deterministic`)."""
-    parser.add_argument("--no-compile-cache", action="store_true",
-                        help="do not use the on-disk compilation cache (default location "
-                             "~/.cache/g2r_jax/jax, or $G2R_JAX_CACHE_DIR)")
-    args = parser.parse_args(argv)
+    or the traceback too with --debug. `body` returns the exit code.
+
+    No arguments at all print the command's help (exit 2). `check(args)` returns the first problem
+    of the arguments that needs no heavy import (a value out of range, an output path that cannot
+    be written), reported like argparse's own errors before anything is imported or computed.
+    Without `--no-compile-cache` JAX's persistent compilation cache is on
+    (`g2r_jax.runtime.compile_cache`). XLA's deterministic GPU operations are requested
+    (`g2r_jax.runtime.deterministic`)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if not argv:
+        parser.print_help(sys.stderr)
+        return 2
+    try:   # argparse exits on --help and on errors: the code is returned like any other
+        args = parser.parse_args(argv)
+    except SystemExit as done:
+        return done.code if isinstance(done.code, int) else (0 if done.code is None else 2)
+    problem = check(args) if check else None
+    if problem:   # a value, not the syntax: one line, like every other error of ours
+        print(f"{name}: error: {one_line(problem)}", file=sys.stderr)
+        return 2
     from g2r_jax.runtime.deterministic import request_deterministic_gpu_ops
 
     request_deterministic_gpu_ops()
@@ -122,3 +135,77 @@ def run_command(name: str, body, argv, parser) -> int:
 def add_debug_flag(parser) -> None:
     parser.add_argument("--debug", action="store_true",
                         help="show full tracebacks and the libraries' own warnings and log messages")
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """`--help` with each option's default where it has one worth showing, and the epilog (the
+    examples) laid out as written."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        default = action.default
+        if (action.option_strings and "%(default)" not in text and default is not None
+                and not isinstance(default, bool) and default is not argparse.SUPPRESS):
+            text += " (default: %(default)s)"
+        return text
+
+
+def command_parser(prog: str, description: str, examples: str, usage: str | None = None):
+    """A command's parser: defaults in the help, `examples` (lines of shell) as its epilog."""
+    import textwrap
+
+    return argparse.ArgumentParser(prog=prog, description=textwrap.fill(" ".join(description.split()), 88),
+                                   usage=usage, formatter_class=HelpFormatter, epilog="examples:\n" + examples)
+
+
+def required_group(parser):
+    """An argument group titled 'required', listed in --help before the optional ones."""
+    group = parser.add_argument_group("required")
+    parser._action_groups.remove(group)   # argparse lists groups in creation order
+    parser._action_groups.insert(1, group)
+    return group
+
+
+def add_common_flags(parser) -> None:
+    """The flags every command has: --quiet (--no-progress is kept as a hidden alias), --debug,
+    --no-compile-cache."""
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="no progress bar, notes or hints; errors and the final summary still print")
+    parser.add_argument("--no-progress", dest="quiet", action="store_true", help=argparse.SUPPRESS)
+    add_debug_flag(parser)
+    parser.add_argument("--no-compile-cache", action="store_true",
+                        help="do not use the on-disk compilation cache (default location "
+                             "~/.cache/g2r_jax/jax, or $G2R_JAX_CACHE_DIR)")
+
+
+def output_file_problem(option: str, path: Path, *, create_folder: bool = False) -> str | None:
+    """Why the file `path` (given as `option`) could not be written, found before any work; None
+    when it can. `create_folder`: a missing folder will be created (else it must exist)."""
+    if path.is_dir():
+        return f"{option} {path}: is a folder; give the file to write (e.g. {path / ('name' + (path.suffix or '.json'))})"
+    folder = path.parent
+    if create_folder:
+        return output_folder_problem(option, folder, given=path)
+    if not folder.exists():
+        return f"{option} {path}: the folder {folder} does not exist (create it first)"
+    if not folder.is_dir():
+        return f"{option} {path}: {folder} is a file, not a folder"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"{option} {path}: no permission to write in {folder}"
+    return None
+
+
+def output_folder_problem(option: str, path: Path, *, given: Path | None = None) -> str | None:
+    """Why the folder `path` could not be created or written to; None when it can. `given`: the
+    path the user typed when `path` is its folder (named in the message)."""
+    given = path if given is None else given
+    existing = path
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        if existing == given:
+            return f"{option} {given}: is a file; a folder is needed here"
+        return f"{option} {given}: {existing} is a file, not a folder"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        return f"{option} {given}: no permission to write in {existing}"
+    return None

@@ -6,46 +6,99 @@ import argparse
 import sys
 from pathlib import Path
 
-from g2r_jax.cli.common import add_debug_flag, run_command
+from g2r_jax.cli.common import (
+    add_common_flags, command_parser, output_folder_problem, required_group, run_command)
 
 DEFAULT_EXAMPLE_PROFILE = "Canon600D"
+USAGE = """g2r-convert INPUT [INPUT ...] --profile NAME|FILE -o OUT_DIR [options]
+       g2r-convert --example -o OUT_DIR [--profile NAME|FILE] [options]
+       g2r-convert --list-profiles"""
+EXAMPLES = """  g2r-convert renders/ --profile gopro_hero6 -o dngs/
+  g2r-convert sceneA/ sceneB/ --profile my_camera.json -o dngs/ --iso 800   # dngs/sceneA/..., dngs/sceneB/...
+  g2r-convert --example -o example_dng/
+"""
+# LibRaw (rawpy, many viewers) applies one colour matrix whatever the light; Adobe's SDK and
+# darktable interpolate the matrices by the white's temperature as the DNG specification says.
+RENDERER_NOTE = ("to view: Adobe's renderers (Lightroom, Camera Raw, DNG SDK) and darktable read the colour "
+                 "tags fully; LibRaw (rawpy) uses one matrix, so warm or night scenes show casts not in the data")
+
+
+class _ListProfiles(argparse.Action):
+    """--list-profiles: print each shipped profile and what it is, then exit (no other option needed)."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from g2r_jax.profile.shipped import describe_shipped
+
+        rows = describe_shipped()
+        width = max((len(name) for name, _ in rows), default=0)
+        print("\n".join(f"{name:{width}s}  {line}" for name, line in rows))
+        parser.exit(0)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="g2r-convert", description=__doc__)
-    parser.add_argument("inputs", nargs="*", type=Path, help="image files or folders")
-    parser.add_argument("--profile", help="profile JSON path or shipped profile name")
-    parser.add_argument("-o", "--output", type=Path, help="output folder (created if missing; needed unless --list-profiles)")
+    parser = command_parser("g2r-convert", __doc__, EXAMPLES, usage=USAGE)
+    parser.add_argument("inputs", nargs="*", type=Path, metavar="INPUT",
+                        help="image files or folders; files from several folders keep their folders under OUT_DIR")
+    required = required_group(parser)
+    required.add_argument("--profile", metavar="NAME|FILE",
+                          help="a shipped profile name (see --list-profiles) or the path of a profile JSON file; "
+                               f"with --example it defaults to {DEFAULT_EXAMPLE_PROFILE}")
+    required.add_argument("-o", "--output", type=Path, required=True, metavar="OUT_DIR",
+                          help="output folder (created if missing)")
     parser.add_argument("--seed", type=int, default=0,
-                        help="random seed of illuminants, exposure and noise (default 0); each file's key derives "
+                        help="random seed of illuminants, exposure and noise; each file's key derives "
                              "from the seed and its name, so the same seed gives the same bytes")
     parser.add_argument("--iso", type=float, help="fixed ISO instead of one drawn per image")
     parser.add_argument("--no-noise", action="store_true", help="do not add sensor noise")
     parser.add_argument("--no-effects", action="store_true", help="do not add the profile's sensor effects")
-    parser.add_argument("--illuminants", type=Path,
+    parser.add_argument("--illuminants", type=Path, metavar="CSV",
                         help="CSV with columns r_over_g,g,b_over_g; row i for the i-th input in sorted order")
     parser.add_argument("--transfer", choices=["auto", "srgb", "gamma2.2", "linear"], default="auto",
                         help="decoding of input values (auto: sRGB for PNG/JPEG/TIFF, linear for EXR)")
     parser.add_argument("--recipe", choices=["dng", "published"], default="dng",
-                        help="colour model: exact DNG inverse (default) or the published approximation")
+                        help="colour model: exact DNG inverse or the published approximation")
     parser.add_argument("--colour", choices=["matrix", "spectral", "spectral-jakob2019"], default="matrix",
-                        help="colour model: DNG matrices (default) or the spectral sensor model (sensitivities from "
+                        help="colour model: DNG matrices or the spectral sensor model (sensitivities from "
                              "the profile, else estimated from its matrices)")
     parser.add_argument("--batch-size", type=int, default=4,
-                        help="images of one size converted together in one compiled call (default 4); "
+                        help="images of one size converted together in one compiled call; "
                              "larger uses more memory, the output bytes do not change")
     parser.add_argument("--workers", type=int, default=2, help="decode/encode threads")
     parser.add_argument("--crop-odd", action="store_true", help="drop the last row/column of odd-sized images")
     parser.add_argument("--lens-shading", action="store_true",
                         help="apply the inverse of the camera's lens shading (profile OpcodeList2) and write the opcode")
     parser.add_argument("--engine", choices=["local", "ray"], default="local",
-                        help="local: this machine (default); ray: spread the files over a Ray cluster "
+                        help="local: this machine; ray: spread the files over a Ray cluster "
                              "(pip install g2r_jax[ray]); same bytes either way")
     parser.add_argument("--example", action="store_true", help="convert the built-in example scene")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("--list-profiles", action="store_true", help="list shipped profiles and exit")
-    add_debug_flag(parser)
+    parser.add_argument("--list-profiles", action=_ListProfiles, help="list the shipped profiles and what each is, and exit")
+    add_common_flags(parser)
     return parser
+
+
+def check_arguments(args) -> str | None:
+    """The first problem of the arguments found without reading any input (None when there is none)."""
+    from g2r_jax.profile.shipped import UnknownProfile, profile_path
+
+    if not args.example and not args.inputs:
+        return "no INPUT given (image files or folders), or use --example"
+    if not args.example and not args.profile:
+        return "the following arguments are required: --profile (a shipped name, see --list-profiles, or a JSON file)"
+    for option, value in (("--batch-size", args.batch_size), ("--workers", args.workers)):
+        if value < 1:
+            return f"{option} {value}: must be at least 1"
+    if args.iso is not None and not args.iso > 0:
+        return f"--iso {args.iso}: must be a positive number"
+    if args.illuminants is not None and not args.illuminants.is_file():
+        return f"--illuminants {args.illuminants}: no such file"
+    try:
+        profile_path(args.profile or DEFAULT_EXAMPLE_PROFILE)
+    except UnknownProfile as error:
+        return f"--profile {error}"
+    return output_folder_problem("-o", args.output)
 
 
 def read_illuminant_csv(path: Path):
@@ -82,22 +135,14 @@ def body(args) -> int:
     from g2r_jax.examples import EXAMPLE_SCENE
     from g2r_jax.io.images import list_inputs
 
-    if args.list_profiles:
-        print("\n".join(profile_module.shipped_profiles()))
-        return 0
-    if args.output is None:
-        raise ValueError("-o/--output OUT_DIR is required")
+    say = (lambda line: None) if args.quiet else (lambda line: print(f"g2r-convert: {line}", file=sys.stderr))
     if args.example:
         inputs = [EXAMPLE_SCENE] + list(args.inputs)
         profile_name = args.profile or DEFAULT_EXAMPLE_PROFILE
-    else:
-        if not args.inputs:
-            raise ValueError("no inputs given (files or folders), or use --example")
-        if not args.profile:
-            raise ValueError("--profile is required (a JSON path or a shipped name; see --list-profiles)")
+    else:   # inputs and --profile: checked while parsing (check_arguments)
         profile_name = args.profile
     profile = profile_module.load_profile(profile_name)   # validated before any input is read
-    if args.example:
+    if args.example and not args.quiet:
         print(f"g2r-convert: example scene with profile {profile_name!r}"
               f"{' (the default; --profile NAME picks another)' if not args.profile else ''}", file=sys.stderr)
     if args.colour != "matrix" and profile.spectral is None:
@@ -122,7 +167,7 @@ def body(args) -> int:
     options = ConvertOptions(seed=args.seed, iso=args.iso, noise=not args.no_noise, effects=not args.no_effects,
                              transfer=args.transfer, recipe=args.recipe, colour=args.colour, batch_size=max(1, args.batch_size),
                              workers=max(1, args.workers), crop_odd=args.crop_odd, lens_shading=args.lens_shading,
-                             progress=not args.no_progress and sys.stderr.isatty())
+                             progress=not args.quiet and sys.stderr.isatty())
     for line in errors:
         print(f"g2r-convert: error: {line}", file=sys.stderr)
     report = lambda line: print(f"g2r-convert: error: {line}", file=sys.stderr)
@@ -135,11 +180,13 @@ def body(args) -> int:
     manifest = args.output / "manifest.jsonl"
     print(f"g2r-convert: {len(result.records)} DNG(s) written to {args.output} with profile "
           f"{profile.info.name!r}; {failed} failed; manifest: {manifest if result.records else 'none (nothing written)'}")
+    if result.records:
+        say(RENDERER_NOTE)
     return 1 if failed else 0
 
 
 def main(argv=None) -> int:
-    return run_command("g2r-convert", body, argv, build_parser())
+    return run_command("g2r-convert", body, argv, build_parser(), check_arguments)
 
 
 if __name__ == "__main__":

@@ -6,7 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from g2r_jax.cli.common import add_debug_flag, error_message, one_line, run_command
+from g2r_jax.cli.common import (
+    add_common_flags, command_parser, error_message, one_line, output_file_problem, required_group,
+    run_command)
 
 
 def validate_profile(profile, path) -> None:
@@ -20,26 +22,46 @@ def validate_profile(profile, path) -> None:
         profile_from_dict(profile_to_dict(profile), str(path), np.float64)
 
 
+EXAMPLES = """  g2r-fit-profile my_camera_dngs/ -o my_camera.json
+  g2r-fit-profile --illuminants lamps.csv --calibration one_shot.dng -o night.json --noise-table noise.csv
+"""
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="g2r-fit-profile", description=__doc__)
-    parser.add_argument("dng_dirs", nargs="*", type=Path, help="folders (or files) of the camera's DNGs")
-    parser.add_argument("-o", "--output", required=True, type=Path, help="profile JSON to write")
-    parser.add_argument("--illuminants", type=Path,
+    parser = command_parser("g2r-fit-profile", __doc__, EXAMPLES)
+    parser.add_argument("dng_dirs", nargs="*", type=Path, metavar="DNG_DIR",
+                        help="folders (or files) of the camera's DNGs (not needed with --illuminants)")
+    required_group(parser).add_argument("-o", "--output", required=True, type=Path, metavar="PROFILE_JSON",
+                                        help="profile JSON to write (its folder must exist)")
+    parser.add_argument("--illuminants", type=Path, metavar="CSV",
                         help="CSV of measured illuminants (r_over_g,g,b_over_g) instead of as-shot neutrals")
-    parser.add_argument("--calibration", type=Path,
+    parser.add_argument("--calibration", type=Path, metavar="DNG|JSON",
                         help="DNG (or profile JSON) giving the colour matrices, CFA and levels (with --illuminants)")
     parser.add_argument("--illuminant-model", choices=["auto", "gaussian", "mixture", "locus"], default="auto",
                         help="auto: Gaussian + convex hull with >= 3 illuminants, else the single-DNG locus")
-    parser.add_argument("--noise-table", type=Path,
+    parser.add_argument("--noise-table", type=Path, metavar="CSV",
                         help="noise calibration CSV (iso,cfa_channel_index,beta1_shot,beta2_read; DN incl. black)")
-    parser.add_argument("--sensitivities", type=Path,
+    parser.add_argument("--sensitivities", type=Path, metavar="FILE",
                         help="the camera's measured spectral sensitivities (rawtoaces JSON, camspec text, or CSV "
                              "wavelength,r,g,b), stored in the profile for --colour spectral")
     parser.add_argument("--sensitivities-camera", help="camera name inside a camspec file with several cameras")
     parser.add_argument("--name", help="profile name (default: the output file's stem)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the mixture model's initialisation (default 0)")
-    add_debug_flag(parser)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the mixture model's initialisation")
+    add_common_flags(parser)
     return parser
+
+
+def check_arguments(args) -> str | None:
+    """The first problem of the arguments found without reading any DNG (None when there is none)."""
+    if args.illuminants and not args.calibration:
+        return "--illuminants needs --calibration DNG (or profile JSON) for the camera's matrices"
+    if not args.illuminants and not args.dng_dirs:
+        return "no DNG_DIR given (folders or files of the camera's DNGs), or use --illuminants CSV --calibration DNG"
+    for option in ("illuminants", "calibration", "noise_table", "sensitivities"):
+        path = getattr(args, option)
+        if path is not None and not path.is_file():
+            return f"--{option.replace('_', '-')} {path}: no such file"
+    return output_file_problem("-o", args.output)
 
 
 def read_noise_table(path: Path, black_level, white_level):
@@ -208,7 +230,7 @@ def body(args) -> int:
         profile = attempt(infos, None)
     if chromaticities is None:
         note = levels_from_infos(infos)[2]
-        if note:
+        if note and not args.quiet:
             print(f"g2r-fit-profile: note: {note}", file=sys.stderr)
     if args.sensitivities:
         profile = _with_sensitivities(profile, args.sensitivities, args.sensitivities_camera, chromaticities, infos)
@@ -219,7 +241,7 @@ def body(args) -> int:
 
 
 def main(argv=None) -> int:
-    return run_command("g2r-fit-profile", body, argv, build_parser())
+    return run_command("g2r-fit-profile", body, argv, build_parser(), check_arguments)
 
 
 if __name__ == "__main__":

@@ -26,19 +26,11 @@ from g2r_jax.colour.dng_model import DngColourModel
 from g2r_jax.colour.spectral import model as _spectral_model
 from g2r_jax.profile.checks import ProfileError, check_document
 
+from g2r_jax.profile.shipped import (  # re-exported: the shipped profiles' place and names
+    SHIPPED_PROFILES_DIR, UnknownProfile, _shipped_profiles_dir, profile_path, shipped_profiles)
 SCHEMA_NAME = "g2r_jax.sensor_profile"
 SCHEMA_VERSION = 1
 
-
-def _shipped_profiles_dir() -> Path:
-    """Where the shipped profiles are: `g2r_jax/profiles/` in an installed wheel (pyproject maps
-    the repository's top-level `profiles/` there), else the checkout's top-level `profiles/`."""
-    package = Path(__file__).resolve().parents[1]
-    installed = package / "profiles"
-    return installed if installed.is_dir() else package.parent / "profiles"
-
-
-SHIPPED_PROFILES_DIR = _shipped_profiles_dir()
 CFA_LETTERS = "RGB"
 _EFFECT_DEFAULTS = {"black_pedestal": [0.0] * 4, "clip_level": 1.0, "channel_gain": [1.0] * 4,
                     "shading": [[0.0, 0.0]] * 4, "row_noise_std": 0.0, "column_noise_std": 0.0}
@@ -327,22 +319,15 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
         spectral=spectral)
 
 
-def shipped_profiles() -> list[str]:
-    """Names of the profiles shipped in `profiles/`."""
-    return sorted(p.stem for p in SHIPPED_PROFILES_DIR.glob("*.json"))
-
-
 def load_profile(name_or_path, dtype=np.float32) -> SensorProfile:
     """Load a profile by path or by shipped name (see `shipped_profiles()`).
 
     **Returns:** a validated `SensorProfile`. Raises ProfileError naming the file and problem.
     """
-    path = Path(name_or_path)
-    if not path.suffix and not path.exists():
-        path = SHIPPED_PROFILES_DIR / f"{name_or_path}.json"
-        if not path.exists():
-            raise ProfileError(f"{name_or_path}: unknown profile name; shipped profiles are: "
-                               f"{', '.join(shipped_profiles()) or '(none)'}")
+    try:
+        path = profile_path(name_or_path)   # a shipped name unless it is the path of a file
+    except UnknownProfile as error:
+        raise ProfileError(str(error)) from None
     try:
         document = json.loads(path.read_text())
     except FileNotFoundError:
