@@ -1,8 +1,9 @@
 """Colour science in JAX: transfer curves, RGB<->XYZ, xy/uv, CCT and chromatic adaptation.
 
 Every constant that colour-science holds (sRGB primaries, CIE whitepoints, the Bradford cone
-matrix, Robertson's isotemperature lines) is read from colour-science at import time, never
-retyped. All functions are pure and work on arrays of any leading shape (last axis = channels),
+matrix, Robertson's isotemperature lines) is copied from colour-science by a build step
+(`build_constants`, into `cie_constants`; a test checks the copies still equal the library's),
+never retyped, so that converting images does not import colour-science and its plotting stack. All functions are pure and work on arrays of any leading shape (last axis = channels),
 in whatever float dtype they are given.
 """
 
@@ -10,23 +11,19 @@ from __future__ import annotations
 
 import warnings
 
-with warnings.catch_warnings():   # colour-science warns on import when matplotlib (plotting only) is absent
-    warnings.filterwarnings("ignore", message=".*Matplotlib.*")
-    import colour
 import jax
 import jax.numpy as jnp
 import numpy as np
-from colour.temperature.robertson1968 import DATA_ISOTEMPERATURE_LINES_ROBERTSON1968
 
-_OBSERVER = "CIE 1931 2 Degree Standard Observer"
+from g2r_jax.colour import cie_constants
 
-XY_D50 = np.asarray(colour.CCS_ILLUMINANTS[_OBSERVER]["D50"], dtype=np.float64)
-XY_D65 = np.asarray(colour.CCS_ILLUMINANTS[_OBSERVER]["D65"], dtype=np.float64)
-XY_A = np.asarray(colour.CCS_ILLUMINANTS[_OBSERVER]["A"], dtype=np.float64)
+XY_D50 = np.asarray(cie_constants.XY_D50, dtype=np.float64)
+XY_D65 = np.asarray(cie_constants.XY_D65, dtype=np.float64)
+XY_A = np.asarray(cie_constants.XY_A, dtype=np.float64)
 
-MATRIX_SRGB_TO_XYZ = np.asarray(colour.models.RGB_COLOURSPACE_sRGB.matrix_RGB_to_XYZ, np.float64)
+MATRIX_SRGB_TO_XYZ = np.asarray(cie_constants.MATRIX_SRGB_TO_XYZ, np.float64)
 MATRIX_XYZ_TO_SRGB = np.linalg.inv(MATRIX_SRGB_TO_XYZ)
-MATRIX_BRADFORD = np.asarray(colour.adaptation.CAT_BRADFORD, dtype=np.float64)
+MATRIX_BRADFORD = np.asarray(cie_constants.MATRIX_BRADFORD, dtype=np.float64)
 
 # IEC 61966-2-1:1999 sRGB electro-optical transfer function constants.
 _SRGB_THRESHOLD = 0.04045
@@ -34,8 +31,17 @@ _SRGB_LINEAR_SLOPE = 12.92
 _SRGB_OFFSET = 0.055
 _SRGB_EXPONENT = 2.4
 
-_ROBERTSON = np.asarray(DATA_ISOTEMPERATURE_LINES_ROBERTSON1968, dtype=np.float64)
+_ROBERTSON = np.asarray(cie_constants.ROBERTSON_1968, dtype=np.float64)
 _SDK_TINT_SCALE = -3000.0   # Adobe DNG SDK dng_temperature.cpp kTintScale
+
+
+def import_colour_science():
+    """colour-science, imported on first use (fit-time functions only): its import pulls in its
+    plotting package and matplotlib, about a second that converting images does not pay."""
+    with warnings.catch_warnings():   # it warns on import when matplotlib (plotting only) is absent
+        warnings.filterwarnings("ignore", message=".*Matplotlib.*")
+        import colour
+    return colour
 
 
 def _power(base, exponent: float):
@@ -168,6 +174,7 @@ def CCT_to_xy(cct) -> np.ndarray:
     (CIE 15:2004 eq. 3.3) above 5000 K, and a smoothstep blend of the two in between; both
     curves from colour-science. Standard Light A lies on the first, D65 on the second.
     """
+    colour = import_colour_science()
     cct = np.atleast_1d(np.asarray(cct, dtype=np.float64))
     planckian = np.stack([colour.temperature.CCT_to_xy_Kang2002(t) for t in cct])
     daylight = np.stack([colour.temperature.CCT_to_xy_CIE_D(np.clip(t, 4000, 25000)) for t in cct])
