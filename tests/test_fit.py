@@ -45,7 +45,9 @@ def test_noise_model_from_noise_profile_tags_by_iso():
     np.testing.assert_allclose(np.asarray(profile.noise.iso), [100, 400])
     # GRBG tile: positions G, R, B, G
     np.testing.assert_allclose(np.asarray(profile.noise.shot[0]), [1e-5, 2e-5, 3e-5, 1e-5], rtol=1e-5)
-    np.testing.assert_allclose(np.asarray(profile.noise.read[1]), [4e-7] * 4, rtol=1e-5)
+    # the tag's O less the rounding to integer DN, which the simulation adds (1/12 DN^2)
+    np.testing.assert_allclose(np.asarray(profile.noise.read[1]), [4e-7 - 1 / 12 / (4095 - 256) ** 2] * 4, rtol=1e-5)
+    assert profile.noise.read_excludes_quantisation
     assert profile.illuminants.kind == "gaussian"
     assert profile.cfa_string == "GRBG"
 

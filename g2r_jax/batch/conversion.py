@@ -87,6 +87,8 @@ def dng_info_for(profile, metadata: dict, height: int, width: int, *, noise: boo
                  opcode_list2: bytes | None = None) -> DngInfo:
     """The DNG tags of one simulated image: the camera's tags plus what was sampled (and the
     lens-shading OpcodeList2 when its inverse was applied)."""
+    from g2r_jax.sensor.noise.quantisation import rounding_variance
+
     colour, info = profile.colour, profile.info
     shot, read = metadata["noise_shot"], metadata["noise_read"]
     has_noise = noise and float(np.max(np.abs(shot))) + float(np.max(np.abs(read))) > 0
@@ -98,7 +100,9 @@ def dng_info_for(profile, metadata: dict, height: int, width: int, *, noise: boo
         analog_balance=np.asarray(colour.analog_balance, np.float64),
         as_shot_neutral=np.asarray(metadata["neutral"], np.float64),
         baseline_exposure=float(profile.baseline_exposure),
-        noise_profile=noise_profile_tag(shot, read, profile.cfa_pattern) if has_noise else None,
+        # the noise of the file's integers: the simulation's read term plus its rounding to DN
+        noise_profile=noise_profile_tag(shot, np.asarray(read, np.float64) + rounding_variance(
+            profile.black_level, float(profile.white_level)), profile.cfa_pattern) if has_noise else None,
         iso=float(np.round(metadata["iso"])),
         opcode_lists={"OpcodeList2": opcode_list2} if opcode_list2 else {})
 

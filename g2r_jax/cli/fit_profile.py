@@ -65,7 +65,8 @@ def check_arguments(args) -> str | None:
 
 
 def read_noise_table(path: Path, black_level, white_level):
-    """NoiseModel from a calibration CSV like ../shared/data/noise/ (errors name the file)."""
+    """NoiseModel from a calibration CSV like ../shared/data/noise/ (errors name the file), its read
+    term less the rounding variance (`sensor.noise.quantisation`)."""
     import csv
 
     import numpy as np
@@ -87,7 +88,10 @@ def read_noise_table(path: Path, black_level, white_level):
         raise DngError(path, "every ISO needs the four CFA positions 0..3")
     beta1 = np.array([[table[i][p][0] for p in range(4)] for i in isos])
     beta2 = np.array([[table[i][p][1] for p in range(4)] for i in isos])
-    return noise_from_table(isos, beta1, beta2, black_level, white_level)
+    from g2r_jax.sensor.noise.quantisation import without_quantisation
+
+    # a calibration of integer raws (photon transfer): its read term holds the rounding, which the simulation adds
+    return without_quantisation(noise_from_table(isos, beta1, beta2, black_level, white_level), black_level, white_level)
 
 
 def _calibration_infos(path: Path):

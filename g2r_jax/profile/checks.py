@@ -11,7 +11,7 @@ matrices, negative noise, and sensor effects outside their physical range. Every
 Bounds (the same as for DNG tags where a field comes from one, `g2r_jax.io.tag_checks`):
 levels 0 <= black < white <= 65535 with at least 32 DN between them; matrices within +-100 and
 condition number <= 1e6; analog balance in [1e-3, 1e3]; baseline exposure within +-10 stops;
-illuminant means (r/g, b/g) in (0, 1000]; exposure log2 mean within +-20, std in [0, 10]; noise
+illuminant means (r/g, b/g) in [0.001, 1000]; exposure log2 mean within +-20, std in [0, 10]; noise
 ISO in (0, 1e7], shot and read in [0, 1]; effects: black + pedestal within [0, white), clip level
 in (0, 2], channel gains in (0, 10], shading gain 1 + a1 r^2 + a2 r^4 positive for r in [0, 1]
 (entries within +-10), defects at non-negative integer positions with values in [0, 1], row and
@@ -152,7 +152,8 @@ def check_document(document, source: str = "<profile>") -> None:
     weights = c.numbers(ill.get("weights"), "illuminants.weights", low=0.0, high=1e6, low_open=True)
     if weights.size == 0:
         c.fail("illuminants.weights", "empty illuminant model")
-    c.numbers(ill.get("means"), "illuminants.means", low=0.0, high=MAX_GAIN, low_open=True)
+    # as AsShotNeutral (g2r_jax.io.tag_checks): a mean of 1e-30 would draw non-positive neutrals
+    c.numbers(ill.get("means"), "illuminants.means", low=1 / MAX_GAIN, high=MAX_GAIN)
     c.numbers(ill.get("covariances"), "illuminants.covariances", low=-1e3, high=1e3)
     c.numbers(ill.get("hull"), "illuminants.hull", low=-1e6, high=1e6, optional=True)
 
@@ -171,6 +172,8 @@ def check_document(document, source: str = "<profile>") -> None:
             c.numbers(level.get("knots"), "noise.level_function.knots", low=-1, high=2)
             c.numbers(level.get("variance"), "noise.level_function.variance", low=0, high=1)
         c.numbers(noise.get("correlation_kernel"), "noise.correlation_kernel", low=-100, high=100, optional=True)
+        if not isinstance(noise.get("read_excludes_quantisation", False), bool):
+            c.fail("noise.read_excludes_quantisation", "expected true or false")
 
     effects = c.obj(document.get("effects"), "effects")
     pedestal = c.numbers(effects.get("black_pedestal"), "effects.black_pedestal", low=-MAX_LEVEL, high=MAX_LEVEL,

@@ -242,7 +242,9 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
 
     **Arguments:** `infos`: tags of the camera's DNGs (`g2r_jax.io.dng_read.read_dng_info`);
     `illuminant_model`: see `illuminant_model_for`; `noise`: a NoiseModel overriding the files'
-    NoiseProfile tags (e.g. from a calibration table); `chromaticities`: (N, 2) illuminants in
+    NoiseProfile tags (e.g. from a calibration table), used as given (a read term measured from
+    integer raws goes through `sensor.noise.quantisation.without_quantisation` first; the files'
+    own noise does here); `chromaticities`: (N, 2) illuminants in
     (r/g, b/g) to use instead of the files' as-shot neutrals; `provenance`: where the numbers
     came from (stored in the profile).
 
@@ -271,10 +273,15 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
                           else np.zeros((0, 2)))
     illuminants = illuminant_model_for(chromaticities, colour_model, illuminant_model, seed, dtype)
     noise_source = ""
+    black, white, _ = levels_from_infos(infos)   # the CLI reports the note
     if noise is None:
         from g2r_jax.sensor.noise.fallback import noise_and_source
+        from g2r_jax.sensor.noise.quantisation import without_quantisation
 
         noise, noise_source = noise_and_source(infos, cfa, dtype)
+        # NoiseProfile tags and pixel measurements are of integer raws: rounding counted once
+        noise = without_quantisation(noise, black, white)
+        noise_source += "; read term without the 1/12 DN^2 rounding, which the simulation adds"
     opcodes = tuple(sorted((k, bytes(v).hex()) for k, v in (reference.opcode_lists or {}).items()))
     info = ProfileInfo(name=name, unique_camera_model=reference.unique_camera_model or reference.model or name,
                        make=reference.make, model=reference.model,
@@ -282,7 +289,6 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
                        provenance=" ".join(filter(None, [provenance or f"fitted by g2r_jax from {len(infos)} DNG file(s)",
                                                          noise_source and f"({noise_source})"])),
                        opcode_lists=opcodes)
-    black, white, _ = levels_from_infos(infos)   # the CLI reports the note
     baseline = float(np.median([i.baseline_exposure for i in infos]))
     return SensorProfile(
         cfa_pattern=jnp.asarray(cfa, jnp.int32), black_level=jnp.asarray(black, dtype),

@@ -102,6 +102,8 @@ def _noise_to_dict(noise: _sensor.NoiseModel) -> dict:
         document["level_function"] = {"knots": _list(noise.level_knots), "variance": _list(noise.level_variance)}
     if noise.correlation_kernel is not None:
         document["correlation_kernel"] = _list(noise.correlation_kernel)
+    if noise.read_excludes_quantisation:
+        document["read_excludes_quantisation"] = True
     return document
 
 
@@ -283,6 +285,7 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
             read=as_j(r.array(r.get(noise_doc, "read", "noise"), "noise.read", (len(iso), 4))),
             iso_range=as_j(r.array(r.get(noise_doc, "iso_range", "noise", optional=True,
                                          default=[iso.min(), iso.max()]), "noise.iso_range", (2,), positive=True)),
+            read_excludes_quantisation=bool(noise_doc.get("read_excludes_quantisation", False)),
             **{k: as_j(v) for k, v in _noise_shape_from_dict(r, noise_doc, len(iso)).items()})
 
     effects_doc = r.get(document, "effects", "effects", optional=True, default={})

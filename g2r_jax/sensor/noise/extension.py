@@ -209,7 +209,8 @@ def fit_noise_extension(estimate, profile, *, correlation=None, iso: float | Non
 
 def _fields(noise) -> dict:
     return {"iso": noise.iso, "shot": noise.shot, "read": noise.read, "level_knots": noise.level_knots,
-            "level_variance": noise.level_variance, "correlation_kernel": noise.correlation_kernel}
+            "level_variance": noise.level_variance, "correlation_kernel": noise.correlation_kernel,
+            "read_excludes_quantisation": noise.read_excludes_quantisation}
 
 
 def _no_shape(noise):

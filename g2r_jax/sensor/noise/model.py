@@ -25,6 +25,11 @@ class NoiseModel(eqx.Module):
     `level_knots` (K,) and `level_variance` (N, 4, K): a noise level function per ISO row and
     tile position, piecewise linear in x, used instead of shot * x + read; `correlation_kernel`
     (4, 3, 3): a spatial correlation kernel within each CFA plane.
+
+    `read_excludes_quantisation`: the read term is the noise before rounding to integer DN (the
+    simulation adds the rounding, 1/12 DN^2, itself); set where a read term measured from integer
+    raw data had the rounding taken out (`g2r_jax.sensor.noise.quantisation`). False: the read term
+    is used as given (profiles that do not say).
     """
 
     iso: Float[Array, "N"]
@@ -34,6 +39,7 @@ class NoiseModel(eqx.Module):
     level_knots: Optional[Float[Array, "K"]] = None
     level_variance: Optional[Float[Array, "N 4 K"]] = None
     correlation_kernel: Optional[Float[Array, "4 3 3"]] = None
+    read_excludes_quantisation: bool = eqx.field(static=True, default=False)
 
 
 def sample_iso(key, noise: NoiseModel):

@@ -1,0 +1,46 @@
+"""Rounding to integer DN counted once: the read term of a profile measured from integer raws.
+
+The simulation ends by rounding to integer DN (`g2r_jax.sensor.effects.to_digital_numbers`),
+which adds the rounding variance q = 1/12 DN^2 to every pixel (Widrow & Kollar, *Quantization
+Noise*, 2008, ch. 4: exact for a uniformly distributed offset, and within 3 % of sigma^2 + q for
+Gaussian noise of sigma >= 0.5 DN even on an integer level). Read noise measured from integer raw
+data (a DNG NoiseProfile, a photon-transfer fit, the pixel fallback) already holds q, so a
+profile keeps read - q, floored at 0, and says so with `NoiseModel.read_excludes_quantisation`.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from g2r_jax.sensor.noise.estimation import quantisation_variance
+
+
+def rounding_variance(black_level, white_level) -> np.ndarray:
+    """(4,) rounding variance 1/12 DN^2 per tile position, in normalised units 1/12/(white - black)^2."""
+    return quantisation_variance(black_level, white_level)
+
+
+def read_without_rounding(read, black_level, white_level) -> np.ndarray:
+    """`read` (..., 4) measured from integer data, less the rounding variance, floored at 0."""
+    return np.maximum(np.asarray(read, np.float64) - rounding_variance(black_level, white_level), 0.0)
+
+
+def without_quantisation(noise, black_level, white_level):
+    """`noise` (a `NoiseModel` whose read term was measured from integer raw data) with the rounding
+    variance taken out of its read term and `read_excludes_quantisation` set; returned unchanged
+    when the flag is already set. A noise level function (`level_variance`) is kept as it is: it is
+    fitted without the rounding already (`g2r_jax.sensor.noise.extension`).
+
+    **Arguments:** `noise`: the NoiseModel; `black_level` (4,) and `white_level`: the levels in DN
+    the read term was measured at.
+
+    **Returns:** a `NoiseModel`.
+    """
+    if noise.read_excludes_quantisation:
+        return noise
+    read = read_without_rounding(noise.read, black_level, white_level)
+    return type(noise)(iso=noise.iso, shot=noise.shot, read=jnp.asarray(read, noise.read.dtype),
+                       iso_range=noise.iso_range, level_knots=noise.level_knots,
+                       level_variance=noise.level_variance, correlation_kernel=noise.correlation_kernel,
+                       read_excludes_quantisation=True)
