@@ -118,6 +118,7 @@ def _extratags(where, mosaic: np.ndarray, info: DngInfo) -> list:
     uses_1_6 = n_matrices > 2 or any(d is not None for d in illuminant_data)
     version = (1, 6, 0, 0) if uses_1_6 else (1, 4, 0, 0)
     add("NewSubfileType", LONG, [0])
+    add("Orientation", SHORT, [1])   # 1: rows top to bottom, columns left to right (TIFF 6.0; the SDK warns without it)
     if info.make:
         add("Make", ASCII, _ascii(info.make))
     if info.model:
