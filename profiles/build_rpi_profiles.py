@@ -308,7 +308,8 @@ def noise_model(tuning: dict, bits: int, gain_range, *, hq_tuning: dict) -> dict
 
     shot(ISO) = k G / (white - black), k the tuning's conversion gain, G = ISO / 100. read(ISO) =
     the IMX477's measured read variance (quantisation removed) in electrons, k_HQ G per DN, converted
-    with this sensor's own k (the same sensor for the HQ camera; a stated proxy for the others)."""
+    with this sensor's own k (the same sensor for the HQ camera; a stated proxy for the others). The
+    read term is the noise before rounding (`read_excludes_quantisation`): the conversion rounds once."""
     black, white = levels(tuning, bits)
     span = white - black
     isos = iso_nodes(gain_range)
@@ -320,7 +321,8 @@ def noise_model(tuning: dict, bits: int, gain_range, *, hq_tuning: dict) -> dict
     shot = k * gains / span
     read = read_dn / span**2
     return {"iso": isos.tolist(), "shot": np.repeat(shot[:, None], 4, 1).tolist(),
-            "read": np.repeat(read[:, None], 4, 1).tolist(), "iso_range": [float(isos[0]), float(isos[-1])]}
+            "read": np.repeat(read[:, None], 4, 1).tolist(), "iso_range": [float(isos[0]), float(isos[-1])],
+            "read_excludes_quantisation": True}
 
 
 # ------------------------------------------------------------------------------ exposure

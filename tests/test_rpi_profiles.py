@@ -77,6 +77,7 @@ def test_shipped_profile_loads_with_levels_noise_and_provenance(name):
     assert float(profile.white_level) == 2**bits - 1
     assert 0 < float(profile.black_level[0]) < 0.1 * float(profile.white_level)
     assert np.all(np.asarray(profile.noise.shot) > 0) and np.all(np.asarray(profile.noise.read) > 0)
+    assert profile.noise.read_excludes_quantisation   # the read terms come from integer black frames, rounding out
     low, high = np.asarray(profile.noise.iso_range)
     assert low >= 100 and high / low > 10
     assert float(profile.exposure.log2_std) > 0
