@@ -156,6 +156,12 @@ def dng_matrices(tuning: dict, curve: np.ndarray, cct: float, white_xy) -> tuple
     FM = Bradford(D65 -> D50) . sRGB_to_XYZ . CCM. The ColorMatrix maps the scene's XYZ under the
     illuminant (white `white_xy`) to camera RGB: CM = inverse(sRGB_to_XYZ . CCM . diag(1 / neutral))
     . Bradford(white -> D65), so that CM . XYZ(white) is the measured neutral.
+
+    **Arguments:** `tuning` (`read_tuning`), `curve` (`ct_curve`), `cct` of the calibration illuminant
+    and its `white_xy`.
+
+    **Returns:** (ColorMatrix, ForwardMatrix), 3x3 each; the ColorMatrix scaled so that the white of
+    Y = 1 has maximum channel 1, the ForwardMatrix mapping (1, 1, 1) to the D50 white.
     """
     ccm = tuning_ccm(tuning, cct)
     neutral = locus_neutral(curve, cct)
@@ -222,7 +228,12 @@ def ccm_reproduction(tuning: dict, curve: np.ndarray, colour_model) -> list[dict
     """At each measured CCM temperature: CIEDE2000 (mean, max over the 24 ColorChecker colours)
     between the tuning's rendering (CCM . diag(1 / neutral)) and the DNG model's rendering of the
     same camera RGB (the camera responses the tuning's matrix implies for the chart), with the
-    neutral from the AWB locus at that temperature, and the CCT the DNG model solves for it."""
+    neutral from the AWB locus at that temperature, and the CCT the DNG model solves for it.
+
+    **Arguments:** `tuning`, `curve` (`ct_curve`), `colour_model`: a float64 `DngColourModel`.
+
+    **Returns:** one dict per measured CCM: ct, dng_cct, mean, max.
+    """
     reference = colourchecker_linear_srgb()
     reference_lab = _lab(reference)
     rows = []
@@ -253,7 +264,12 @@ def ct_prior(tuning: dict, cts: np.ndarray) -> np.ndarray:
 def illuminant_mixture(tuning: dict, curve: np.ndarray, step: float = 0.03) -> dict:
     """The `illuminants` object: one Gaussian per CT node (geometric steps of `step` over the auto
     AWB range), centred on the AWB locus shifted by the centre of the transverse band, with standard
-    deviation the node spacing along the locus and the band's (uniform) std across it."""
+    deviation the node spacing along the locus and the band's (uniform) std across it.
+
+    **Arguments:** `tuning`, `curve` (`ct_curve`), `step`: relative CT spacing of the nodes.
+
+    **Returns:** the profile's `illuminants` object (kind "mixture", no hull).
+    """
     awb = tuning["rpi.awb"]
     low, high = float(awb["modes"]["auto"]["lo"]), float(awb["modes"]["auto"]["hi"])
     count = int(np.ceil(np.log(high / low) / np.log1p(step))) + 1
@@ -309,7 +325,13 @@ def noise_model(tuning: dict, bits: int, gain_range, *, hq_tuning: dict) -> dict
     shot(ISO) = k G / (white - black), k the tuning's conversion gain, G = ISO / 100. read(ISO) =
     the IMX477's measured read variance (quantisation removed) in electrons, k_HQ G per DN, converted
     with this sensor's own k (the same sensor for the HQ camera; a stated proxy for the others). The
-    read term is the noise before rounding (`read_excludes_quantisation`): the conversion rounds once."""
+    read term is the noise before rounding (`read_excludes_quantisation`): the conversion rounds once.
+
+    **Arguments:** `tuning`, raw `bits`, analogue `gain_range` (low, high), `hq_tuning`: the IMX477's
+    tuning (the conversion gain of the sensor the read noise was measured on).
+
+    **Returns:** the profile's `noise` object, the same terms at all four CFA sites.
+    """
     black, white = levels(tuning, bits)
     span = white - black
     isos = iso_nodes(gain_range)
