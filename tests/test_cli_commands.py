@@ -149,3 +149,17 @@ def test_a_read_only_output_folder_is_refused_while_parsing(tmp_path, capsys):
         assert "no permission to write in" in capsys.readouterr().err
     finally:
         locked.chmod(0o700)
+
+
+def test_the_commands_page_lists_every_option():
+    from pathlib import Path as _Path
+
+    page = (_Path(__file__).resolve().parents[1] / "docs" / "pages" / "commands.md").read_text()
+    for name, parser in (("g2r-convert", convert.build_parser()), ("g2r-fit-profile", fit_profile.build_parser()),
+                         ("g2r-diagnose", diagnose._parser())):
+        section = page.split(f"\n## {name}\n", 1)[1].split("\n## ", 1)[0]
+        for action in parser._actions:
+            if action.help == "==SUPPRESS==":
+                continue
+            for option in action.option_strings:
+                assert option in section, f"docs/pages/commands.md: {name} {option} missing (paste its --help)"
