@@ -67,6 +67,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="images of one size converted together in one compiled call; "
                              "larger uses more memory, the output bytes do not change")
     parser.add_argument("--workers", type=int, default=2, help="decode/encode threads")
+    parser.add_argument("--compression", choices=["none", "ljpeg"], default="none",
+                        help="DNG pixel data: uncompressed, or lossless JPEG tiles (DNG Compression 7, read by "
+                             "LibRaw and the Adobe DNG SDK): 0.4-0.65 of the size for about 0.3 s more CPU "
+                             "a 12-MP frame")
     parser.add_argument("--crop-odd", action="store_true", help="drop the last row/column of odd-sized images")
     parser.add_argument("--lens-shading", action="store_true",
                         help="apply the inverse of the camera's lens shading (profile OpcodeList2) and write the opcode")
@@ -167,6 +171,7 @@ def body(args) -> int:
     options = ConvertOptions(seed=args.seed, iso=args.iso, noise=not args.no_noise, effects=not args.no_effects,
                              transfer=args.transfer, recipe=args.recipe, colour=args.colour, batch_size=max(1, args.batch_size),
                              workers=max(1, args.workers), crop_odd=args.crop_odd, lens_shading=args.lens_shading,
+                             compression=args.compression,
                              progress=not args.quiet and sys.stderr.isatty())
     for line in errors:
         print(f"g2r-convert: error: {line}", file=sys.stderr)

@@ -2,7 +2,9 @@
 
 The file is one little-endian TIFF whose IFD0 *is* the raw image (NewSubFileType 0; spec ch. 2
 'SubIFD Trees' recommends a preview in IFD0 but does not require one, and GoPro cameras write the
-same layout), uncompressed, 16 bits per sample, one strip. ISO and ExposureTime go in IFD0 as
+same layout), 16 bits per sample: uncompressed in one strip, or with `compression='ljpeg'` lossless
+JPEG (Compression 7) in tiles of up to 256 x 256 (`g2r_jax.io.lossless_jpeg`); the pixels read back the
+same either way. ISO and ExposureTime go in IFD0 as
 TIFF/EP tags (no EXIF IFD); LibRaw needs at least 22x22 pixels to accept the file.
 Tag types follow spec ch. 4 exactly, since LibRaw ignores colour tags stored with other types:
 SRATIONAL for ColorMatrix*, CameraCalibration*, ForwardMatrix*, BaselineExposure; RATIONAL for
@@ -26,10 +28,12 @@ from g2r_jax.io.dng_info import DngError, DngInfo
 from g2r_jax.io.dng_read import TAGS, require_bayer_cfa, require_colour_tags
 from g2r_jax.io.illuminant_data import encode_white_xy
 
-__all__ = ["write_dng", "write_dng_bytes", "to_rationals"]
+__all__ = ["write_dng", "write_dng_bytes", "to_rationals", "COMPRESSIONS"]
 
 # TIFF field types (TIFF 6.0 section 2)
 BYTE, ASCII, SHORT, LONG, RATIONAL, UNDEFINED, SRATIONAL, DOUBLE = 1, 2, 3, 4, 5, 7, 10, 12
+
+COMPRESSIONS = ("none", "ljpeg")   # uncompressed strip; lossless JPEG tiles (DNG Compression 7)
 
 _SIGNED_MAX = 2**31 - 1
 _UNSIGNED_MAX = 2**32 - 1
@@ -203,14 +207,17 @@ def _extratags(where, mosaic: np.ndarray, info: DngInfo) -> list:
     return tags
 
 
-def write_dng_bytes(mosaic: np.ndarray, info: DngInfo, *, where="<dng bytes>") -> bytes:
+def write_dng_bytes(mosaic: np.ndarray, info: DngInfo, *, where="<dng bytes>", compression: str = "none") -> bytes:
     """The DNG file for an (H, W) uint16 Bayer mosaic and `info`, as bytes (deterministic).
 
     `mosaic` is the whole raw frame (`info.width`/`height` are ignored). `info` must pass
     `require_colour_tags` and `require_bayer_cfa`. `info.active_area` and the default crop are
     written only when they are not the whole frame, and must then fit the mosaic (else DngError).
     OpcodeLists are copied byte for byte: their regions must already suit the mosaic.
+    `compression`: 'none' (one uncompressed strip) or 'ljpeg' (lossless JPEG tiles).
     """
+    if compression not in COMPRESSIONS:
+        raise DngError(where, f"unknown compression {compression!r} (choose from {', '.join(COMPRESSIONS)})")
     mosaic = np.asarray(mosaic)
     if mosaic.ndim != 2 or mosaic.shape[0] < 2 or mosaic.shape[1] < 2:
         raise DngError(where, f"mosaic must be a 2-D (H, W) array of at least 2x2, got shape {mosaic.shape}")
@@ -227,13 +234,19 @@ def write_dng_bytes(mosaic: np.ndarray, info: DngInfo, *, where="<dng bytes>") -
 
     import tifffile
 
+    if compression == "ljpeg":
+        from g2r_jax.io.lossless_jpeg import encode_tiles, precision_for, tile_shape
+
+        tile = tile_shape(*mosaic.shape)
+        data = dict(data=iter(encode_tiles(mosaic, precision_for(mosaic, info.white_level), tile)),
+                    shape=mosaic.shape, dtype=np.uint16, bitspersample=16, compression=7, tile=tile)
+    else:
+        data = dict(data=np.ascontiguousarray(mosaic), compression=None, rowsperstrip=mosaic.shape[0])
     buffer = io.BytesIO()
     with tifffile.TiffWriter(buffer, byteorder="<", bigtiff=False) as tif:
         tif.write(
-            np.ascontiguousarray(mosaic),
+            **data,
             photometric=32803,              # CFA (TIFF/EP); DNG spec ch. 4 'PhotometricInterpretation'
-            compression=None,
-            rowsperstrip=mosaic.shape[0],
             software=False,
             description=None,
             metadata=None,
@@ -249,15 +262,16 @@ def _with_path(info: DngInfo, where) -> DngInfo:
     return dataclasses.replace(info, path=str(where))
 
 
-def write_dng(path, mosaic: np.ndarray, info: DngInfo) -> None:
+def write_dng(path, mosaic: np.ndarray, info: DngInfo, *, compression: str = "none") -> None:
     """Write `mosaic` and `info` as a DNG at `path`, atomically and deterministically.
 
     The bytes of `write_dng_bytes` go to a temporary file '.<name>.<random>.tmp' in the target's
     folder, which is flushed, fsync'ed and `os.replace`d onto `path`; on any failure the
     temporary file is removed and `path` is left as it was. Errors are `DngError(path, ...)`.
+    `compression`: as in `write_dng_bytes`.
     """
     path = Path(path)
-    data = write_dng_bytes(mosaic, info, where=path)
+    data = write_dng_bytes(mosaic, info, where=path, compression=compression)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise DngError(path, "output folder does not exist")

@@ -59,6 +59,20 @@ def no_effects(dtype=np.float32) -> SensorEffects:
         column_noise_std=jnp.asarray(0.0, dtype))
 
 
+def changes_nothing(effects: SensorEffects) -> bool:
+    """Whether `effects` (concrete values, not traced) equal `no_effects()`: no pedestal,
+    clipping at 1, unit gains, no shading, defects or banding. Rendering with such effects gives
+    the bytes of rendering without them (multiplying by exactly 1 and adding exactly 0 change
+    no value, and clipping at 1 is where the levels clip anyway), so a caller can compile the
+    pipeline without them: traced as arguments, they cost about 5x the rest of the pixel loop on
+    a CPU (docs/pages/validation/performance.md)."""
+    values = lambda field: np.asarray(getattr(effects, field), np.float64)
+    return (not np.any(values("black_pedestal")) and float(values("clip_level")) == 1.0
+            and bool(np.all(values("channel_gain") == 1.0)) and not np.any(values("shading"))
+            and values("defect_rows").size == 0 and float(values("row_noise_std")) == 0.0
+            and float(values("column_noise_std")) == 0.0)
+
+
 def shading_gain_mosaic(mosaic_shape, shading, dtype=jnp.float32, *, valid_shape=None):
     """Radial gain 1 + a1[p] r^2 + a2[p] r^4 of every pixel (H, W) (`valid_shape`: see
     `radial_distance_squared_mosaic`)."""
