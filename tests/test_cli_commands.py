@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from g2r_jax.batch.conversion import output_names
 from g2r_jax.cli import convert, diagnose, fit_profile
 from g2r_jax.profile.shipped import SHIPPED_PROFILES_DIR, UnknownProfile, profile_path
 
@@ -131,6 +132,32 @@ def test_a_profile_argument_is_a_shipped_name_unless_it_is_a_file(tmp_path, monk
         profile_path("folder_only")
     with pytest.raises(UnknownProfile, match="sub/none.json: no such profile file"):
         profile_path("sub/none.json")
+
+
+def test_output_names_keep_folders_only_when_inputs_come_from_several(tmp_path):
+    one = [tmp_path / "a" / "0001.png", tmp_path / "a" / "0002.exr"]
+    assert output_names(one) == ["0001", "0002"]
+    two = [tmp_path / "sceneA" / "0001.png", tmp_path / "sceneB" / "0001.png", tmp_path / "sceneB" / "x" / "2.jpg"]
+    assert output_names(two) == ["sceneA/0001", "sceneB/0001", "sceneB/x/2"]
+    assert output_names([]) == []
+
+
+def test_same_named_inputs_in_two_folders_are_written_under_their_folders(tmp_path, capsys):
+    rng = np.random.default_rng(0)
+    for scene in ("sceneA", "sceneB"):
+        (tmp_path / scene).mkdir()
+        Image.fromarray(rng.integers(0, 256, (16, 24, 3), dtype=np.uint8)).save(tmp_path / scene / "0001.png")
+    out = tmp_path / "out"
+    status = convert.main([str(tmp_path / "sceneA"), str(tmp_path / "sceneB"), "--profile", "gopro_hero6",
+                           "-o", str(out), "--quiet"])
+    captured = capsys.readouterr()
+    assert status == 0, captured.err
+    assert sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file()) == [
+        "manifest.jsonl", "sceneA/0001.dng", "sceneB/0001.dng"]
+    records = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()]
+    assert sorted(r["output"] for r in records) == ["sceneA/0001.dng", "sceneB/0001.dng"]   # relative
+    assert records[0]["neutral"] != records[1]["neutral"]    # own random keys, not one shared by the name
+    assert "LibRaw" not in captured.err                       # --quiet: no renderer note
 
 
 def test_convert_ends_with_which_renderers_read_the_colour_tags(tmp_path, capsys):

@@ -83,8 +83,9 @@ def test_pipeline_dark_frame_matches_the_measurement():
     assert abs(simulated / measured - 1) < 0.05, (measured, simulated)
 
 
-def test_read_noise_below_the_rounding_is_floored_at_zero():
-    profile = fit_profile([sensor_info(np.array([[1e-4, 0.05 / SPAN**2]]), "quiet.dng")])
+def test_read_noise_below_the_rounding_is_floored_at_zero_and_said():
+    with pytest.warns(UserWarning, match=r"measured from integer data at 0.22 DN.*cannot be told apart"):
+        profile = fit_profile([sensor_info(np.array([[1e-4, 0.05 / SPAN**2]]), "quiet.dng")])
     np.testing.assert_array_equal(np.asarray(profile.noise.read), 0.0)
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import concurrent.futures as futures
 import dataclasses
 import json
+import os
 import zlib
 from pathlib import Path
 
@@ -193,6 +194,17 @@ def _batched_unprocess(options: ConvertOptions, transfer: str, with_neutral: boo
     return _COMPILED[signature]
 
 
+def output_names(inputs) -> list[str]:
+    """Each input's DNG path under the output folder, without `.dng`: its path relative to the
+    deepest folder holding all inputs, with `/` separators. Files of one folder keep their stems
+    (`0001`); files of several folders keep their folders (`sceneA/0001`, `sceneB/0001`)."""
+    folders = [os.path.abspath(Path(p).parent) for p in inputs]
+    if not folders:
+        return []
+    root = os.path.commonpath(folders)
+    return [Path(os.path.relpath(os.path.abspath(p), root)).with_suffix("").as_posix() for p in inputs]
+
+
 def _manifest_record(path, output, metadata, seed):
     return {"input": str(path), "output": str(output),
             "neutral": [round(float(v), 8) for v in np.asarray(metadata["neutral"])],
@@ -202,13 +214,17 @@ def _manifest_record(path, output, metadata, seed):
 
 
 def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOptions | None = None,
-                  on_error=None, write_manifest: bool = True) -> ConvertResult:
-    """Convert image files into DNGs `out_dir/<stem>.dng` and write `out_dir/manifest.jsonl`.
+                  on_error=None, write_manifest: bool = True, names=None) -> ConvertResult:
+    """Convert image files into DNGs `out_dir/<name>.dng` and write `out_dir/manifest.jsonl`.
 
     **Arguments:** `inputs`: image paths (already expanded, in the order rows of `neutrals`
     apply); `profile`: a SensorProfile; `out_dir`; `neutrals`: optional (N, 3) camera neutrals,
     row i for input i; `options`: `ConvertOptions`; `on_error`: called with each error line;
-    `write_manifest`: False leaves the manifest to the caller (a chunk of a distributed run).
+    `write_manifest`: False leaves the manifest to the caller (a chunk of a distributed run);
+    `names`: each input's output path under `out_dir` without `.dng` (default `output_names`:
+    the stem for files of one folder, `folder/stem` for files of several). A file's random key
+    derives from the seed and its name with the input's extension (`0001.png`, `sceneA/0001.png`);
+    the manifest names outputs relative to `out_dir`.
 
     **Returns:** `ConvertResult` (records in input order, error lines).
     """
@@ -223,10 +239,11 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
     records, errors = {}, []
     report = (lambda line: (errors.append(line), on_error and on_error(line)))
 
-    stems = {}
-    for path in inputs:
-        stems.setdefault(path.stem, []).append(path)
-    duplicates = {s for s, paths in stems.items() if len(paths) > 1}
+    names = output_names(inputs) if names is None else [str(n) for n in names]
+    claimed = {}
+    for name in names:
+        claimed[name] = claimed.get(name, 0) + 1
+    duplicates = {name for name, count in claimed.items() if count > 1}
 
     progress = None
     if options.progress:
@@ -245,8 +262,9 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
     render_effects = options.effects and not changes_nothing(profile.effects)
 
     def write(index, path, mosaic, metadata):
-        output = out_dir / f"{path.stem}.dng"
+        output = out_dir / f"{names[index]}.dng"
         try:
+            output.parent.mkdir(parents=True, exist_ok=True)
             opcodes = lens_for(*mosaic.shape)[1] if options.lens_shading else None
             info = dng_info_for(profile, metadata, mosaic.shape[0], mosaic.shape[1], noise=options.noise,
                                 opcode_list2=opcodes)
@@ -255,7 +273,7 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
             raise
         except Exception as error:  # noqa: BLE001 - name the input whatever went wrong
             raise DngError(path, f"writing {output} failed: {type(error).__name__}: {error}") from error
-        return index, _manifest_record(path, output, metadata, options.seed)
+        return index, _manifest_record(path, f"{names[index]}.dng", metadata, options.seed)
 
     with futures.ThreadPoolExecutor(max(1, options.workers)) as pool:
         def submit_load(i):
@@ -293,7 +311,7 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
             shape, _, transfer = group
             count = len(batch)
             padded = batch + [batch[-1]] * (options.batch_size - count) if count < options.batch_size else batch
-            keys = jnp.stack([file_key(options.seed, inputs[i].name) for i, _ in padded])
+            keys = jnp.stack([file_key(options.seed, names[i] + inputs[i].suffix) for i, _ in padded])
             stacked = np.zeros((len(padded),) + tuple(shape) + padded[0][1].shape[2:], padded[0][1].dtype)
             for j, (_, image) in enumerate(padded):
                 stacked[j, :image.shape[0], :image.shape[1]] = image
@@ -314,8 +332,9 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
         for index in range(len(inputs)):
             path = inputs[index]
             try:
-                if path.stem in duplicates:
-                    raise DngError(path, f"another input has the same name stem {path.stem!r}; outputs would collide")
+                if names[index] in duplicates:
+                    raise DngError(path, f"another input would also be written to {names[index]}.dng "
+                                         f"(same name, another extension); rename one")
                 image = loading.pop(index).result()
             except Exception as error:  # noqa: BLE001 - every per-file failure is reported, the batch goes on
                 loading.pop(index, None)

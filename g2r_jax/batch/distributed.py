@@ -100,13 +100,13 @@ def _require_ray():
     return ray
 
 
-def _convert_chunk(files, profile_name, out_dir, neutrals, options):
+def _convert_chunk(files, profile_name, out_dir, neutrals, options, names=None):
     """One Ray task: the local batch driver on a chunk of files, without the manifest."""
     from g2r_jax.batch.conversion import convert_files
     from g2r_jax.profile.schema import load_profile
 
     result = convert_files(files, load_profile(profile_name), out_dir, neutrals=neutrals, options=options,
-                           write_manifest=False)
+                           write_manifest=False, names=names)
     return result.records, result.errors
 
 
@@ -125,7 +125,7 @@ def convert_files_ray(inputs, profile_name, out_dir, *, neutrals=None, options=N
     **Returns:** `ConvertResult` with the records in input order.
     """
     ray = _require_ray()
-    from g2r_jax.batch.conversion import ConvertOptions, ConvertResult, write_manifest_file
+    from g2r_jax.batch.conversion import ConvertOptions, ConvertResult, output_names, write_manifest_file
     from g2r_jax.io.dng_info import DngError
 
     options = options or ConvertOptions()
@@ -143,14 +143,17 @@ def convert_files_ray(inputs, profile_name, out_dir, *, neutrals=None, options=N
         if on_error:
             on_error(line)
 
-    # Name collisions are a property of the whole run, not of a chunk: refused here, as locally.
-    stems = {}
-    for path in inputs:
-        stems.setdefault(path.stem, []).append(path)
+    # Output names and their collisions are a property of the whole run, not of a chunk: decided
+    # here, as locally.
+    names = output_names(given_inputs)
+    claimed = {}
+    for name in names:
+        claimed[name] = claimed.get(name, 0) + 1
     keep = []
-    for index, path in enumerate(inputs):
-        if len(stems[path.stem]) > 1:
-            report(str(DngError(path, f"another input has the same name stem {path.stem!r}; outputs would collide")))
+    for index, path in enumerate(given_inputs):
+        if claimed[names[index]] > 1:
+            report(str(DngError(path, f"another input would also be written to {names[index]}.dng "
+                                      f"(same name, another extension); rename one")))
         else:
             keep.append(index)
 
@@ -164,7 +167,8 @@ def convert_files_ray(inputs, profile_name, out_dir, *, neutrals=None, options=N
     for start in range(0, len(keep), files_per_task):
         chunk = keep[start:start + files_per_task]
         rows = None if neutrals is None else np.asarray(neutrals)[chunk]
-        pending[task.remote([inputs[i] for i in chunk], profile_name, out_dir, rows, chunk_options)] = start
+        pending[task.remote([inputs[i] for i in chunk], profile_name, out_dir, rows, chunk_options,
+                            [names[i] for i in chunk])] = start
 
     progress = None
     if options.progress:
@@ -187,7 +191,6 @@ def convert_files_ray(inputs, profile_name, out_dir, *, neutrals=None, options=N
     for i in keep:
         record = by_output.get(str(inputs[i]))
         if record is not None:   # the manifest names files as they were given, like the local engine
-            ordered.append(dict(record, input=str(given_inputs[i]),
-                                output=str(given_out_dir / f"{given_inputs[i].stem}.dng")))
+            ordered.append(dict(record, input=str(given_inputs[i])))
     write_manifest_file(out_dir, ordered)
     return ConvertResult(records=ordered, errors=errors)

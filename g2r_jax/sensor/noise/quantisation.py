@@ -2,13 +2,17 @@
 
 The simulation ends by rounding to integer DN (`g2r_jax.sensor.effects.to_digital_numbers`),
 which adds the rounding variance q = 1/12 DN^2 to every pixel (Widrow & Kollar, *Quantization
-Noise*, 2008, ch. 4: exact for a uniformly distributed offset, and within 3 % of sigma^2 + q for
-Gaussian noise of sigma >= 0.5 DN even on an integer level). Read noise measured from integer raw
-data (a DNG NoiseProfile, a photon-transfer fit, the pixel fallback) already holds q, so a
-profile keeps read - q, floored at 0, and says so with `NoiseModel.read_excludes_quantisation`.
+Noise*, 2008, ch. 4: for Gaussian noise of sigma >= 0.5 DN the variance of the rounded values is
+sigma^2 + q within 3 %, wherever the level sits; below about 0.4 DN it depends on where the level
+sits between two integers, and the subtraction is an estimate, low on an integer black level).
+Read noise measured from integer raw data (a DNG NoiseProfile, a photon-transfer fit, the pixel
+fallback) already holds q, so a profile keeps read - q, floored at 0, and says so with
+`NoiseModel.read_excludes_quantisation`.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import jax.numpy as jnp
 import numpy as np
@@ -39,7 +43,15 @@ def without_quantisation(noise, black_level, white_level):
     """
     if noise.read_excludes_quantisation:
         return noise
-    read = read_without_rounding(noise.read, black_level, white_level)
+    measured = np.asarray(noise.read, np.float64)
+    rounding = rounding_variance(black_level, white_level)
+    low = (measured > 0) & (measured < 2 * rounding)
+    if np.any(low):
+        sigma_dn = float(np.sqrt(np.min((measured / (12 * rounding))[low])))   # total measured sigma, in DN
+        warnings.warn(f"read noise measured from integer data at {sigma_dn:.2f} DN, of which rounding to integer "
+                      "DN is 0.29 DN: below about 0.4 DN the two cannot be told apart reliably; the read noise "
+                      "before rounding may come out too low (docs: validation/dng_conformance)", stacklevel=2)
+    read = read_without_rounding(measured, black_level, white_level)
     return type(noise)(iso=noise.iso, shot=noise.shot, read=jnp.asarray(read, noise.read.dtype),
                        iso_range=noise.iso_range, level_knots=noise.level_knots,
                        level_variance=noise.level_variance, correlation_kernel=noise.correlation_kernel,
