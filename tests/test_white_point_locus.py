@@ -55,6 +55,8 @@ def test_sodium_lamp_file_is_accepted_and_an_impossible_one_refused():
     assert check_file_colour(s20fe_info(SODIUM_NEUTRAL, "sodium.dng")).path == "sodium.dng"
     with pytest.raises(DngError, match=r"impossible\.dng: .*outside the spectrum locus"):
         check_file_colour(s20fe_info([0.1, 1.0, 0.1], "impossible.dng"))   # xy (0.33, 0.94)
+    with pytest.raises(DngError, match=r"negative\.dng: .*xy \(0\.135, -0\.014\) has a coordinate <= 0"):
+        check_file_colour(s20fe_info([0.3, 1.0, 5.0], "negative.dng"))
 
 
 @pytest.mark.data

@@ -72,8 +72,10 @@ def check_file_colour(info: DngInfo) -> DngInfo:
     if not (np.all(np.isfinite(xy)) and np.all(np.isfinite(matrix))):
         raise DngError(info.path, "AsShotNeutral with the colour matrices: no valid white point")
     if not is_light_chromaticity(xy):
+        where = (f"is {distance_outside_locus(xy):.3f} outside the spectrum locus" if min(xy) > 0
+                 else "has a coordinate <= 0")
         raise DngError(info.path, f"AsShotNeutral with the colour matrices: white point xy ({xy[0]:.3f}, {xy[1]:.3f}) "
-                                  f"is {distance_outside_locus(xy):.3f} outside the spectrum locus: no light has it")
+                                  f"{where}: no light has it")
     return info
 
 
