@@ -15,6 +15,12 @@ def measured_set(profile, seed: int, n: int = N_FILES, height: int = HEIGHT, wid
     return simulate.simulate(profile, scenes.scene_set(n, 10_000 + seed, height, width), 50_000 + seed)
 
 
+def dark_frames(profile, seed: int, n: int = 3, height: int = HEIGHT, width: int = WIDTH):
+    """n dark frames of the 'true camera' `profile` (a black scene: lens capped), the black-level
+    evidence a measured set needs (the audit does not read a pedestal from scene content)."""
+    return simulate.simulate(profile, np.zeros((n, height, width, 3), np.float32), 70_000 + seed)
+
+
 def hidden_effect(cause: str, rng, base=None):
     """(true profile, magnitude) with `cause` injected at a random modest magnitude."""
     base = base if base is not None else synthetic.demo_profile()

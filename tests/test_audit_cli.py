@@ -10,18 +10,20 @@ from g2r_jax.audit import CAUSES, synthetic
 from g2r_jax.cli.diagnose import main
 from g2r_jax.io.dng_write import write_dng
 from g2r_jax.profile.schema import save_profile
-from audit_helpers import measured_set
+from audit_helpers import dark_frames, measured_set
 
 
 @pytest.fixture(scope="module")
 def camera(tmp_path_factory):
-    """A folder of 16 small DNGs from the demo camera with a black pedestal, and its clean profile."""
+    """A folder of 16 small DNGs and 3 dark frames from the demo camera with a black pedestal, and
+    its clean profile."""
     root = tmp_path_factory.mktemp("camera")
     base = synthetic.demo_profile()
     truth = synthetic.inject(base, "black_level", offset=0.02)
     folder = root / "dng"
     folder.mkdir()
-    for i, (mosaic, info) in enumerate(measured_set(truth, 5, n=16, height=120, width=180)):
+    files = measured_set(truth, 5, n=16, height=120, width=180) + dark_frames(truth, 5, n=3, height=120, width=180)
+    for i, (mosaic, info) in enumerate(files):
         write_dng(folder / f"IMG_{i:03d}.dng", mosaic, info)
     save_profile(base, root / "profile.json")
     return root
@@ -45,8 +47,20 @@ def test_cli_writes_report_and_extended_profile(camera, capsys):
     assert first["gain"]["heldout"] is True and first["gain"]["after"] < first["gain"]["before"]
     extended = json.loads((camera / "extended.json").read_text())
     assert extended["effects"]["black_pedestal"][0] == pytest.approx(0.02 * (4095 - 256), rel=0.15)
-    assert "black_level" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "black_level" in out and "3 dark frame(s)" in out
+    assert f"report: {report_path}" in out and str(camera / "REPORT_html" / "report.html") in out
     assert (camera / "REPORT_html" / "report.html").exists()
+    assert " nan" not in out and "p 0" not in out
+
+
+def test_cli_writes_the_extended_profile_by_default(camera, capsys, tmp_path):
+    report_path = tmp_path / "REPORT.json"
+    assert main(["--profile", str(camera / "profile.json"), "--measured", str(camera / "dng"),
+                 "--report", str(report_path), "--seed", "3", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert (tmp_path / "REPORT_profile.json").exists()
+    assert f"g2r-convert --profile {tmp_path / 'REPORT_profile.json'}" in out
 
 
 def test_cli_missing_folder_is_one_line(camera, capsys):

@@ -1,6 +1,7 @@
 """Hidden effects must be found: inject an effect of the vocabulary at a random modest magnitude
 (the test's own RNG), and require it named first, its parameter recovered and a positive
-held-out gain; clean sets give no finding; two effects are both named."""
+held-out gain; clean sets give no finding; two effects are both named. Every measured set holds
+three dark frames: the only black-level evidence the audit accepts besides optical-black pixels."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import pytest
 
 from g2r_jax.audit import diagnose, synthetic
 from g2r_jax.audit.vocabulary import FILE_CAUSES as CAUSES  # colour_matrix: tests/test_colour_charts.py
-from audit_helpers import assert_parameter_close, hidden_effect, measured_set, significant
+from audit_helpers import assert_parameter_close, dark_frames, hidden_effect, measured_set, significant
 
 SEED = int(os.environ.get("G2R_AUDIT_TEST_SEED", "20240607"))
 
@@ -24,7 +25,7 @@ def base():
 def _check_named_first(cause, base, rng_seed):
     rng = np.random.default_rng(rng_seed)
     truth, magnitude = hidden_effect(cause, rng, base)
-    report = diagnose(base, measured_set(truth, rng_seed), seed=rng_seed % 1000)
+    report = diagnose(base, measured_set(truth, rng_seed) + dark_frames(truth, rng_seed), seed=rng_seed % 1000)
     found = significant(report)
     assert found, f"{cause} {magnitude}: nothing significant"
     first = found[0]
@@ -50,7 +51,7 @@ def test_hidden_effect_is_named_first_slow(cause, base):
 
 
 def test_clean_set_has_no_finding(base):
-    report = diagnose(base, measured_set(base, SEED), seed=1)
+    report = diagnose(base, measured_set(base, SEED) + dark_frames(base, SEED), seed=1)
     assert not significant(report), [(f["cause"], f["p"], f["evidence"]) for f in significant(report)]
     assert report["unexplained"] == []
 
@@ -97,6 +98,6 @@ def test_two_effects_are_both_named(base):
     truth = base
     for cause in causes:
         truth = synthetic.inject(truth, cause, **synthetic.random_magnitude(cause, rng))
-    report = diagnose(base, measured_set(truth, SEED + 7), seed=3)
+    report = diagnose(base, measured_set(truth, SEED + 7) + dark_frames(truth, SEED + 7), seed=3)
     named = {f["cause"] for f in significant(report)}
     assert set(causes) <= named, (causes, named)

@@ -14,7 +14,7 @@ import pytest
 
 import g2r_jax
 from g2r_jax.audit import diagnose, synthetic
-from audit_helpers import assert_parameter_close, measured_set, significant
+from audit_helpers import assert_parameter_close, dark_frames, measured_set, significant
 
 SEED = int(os.environ.get("G2R_AUDIT_TEST_SEED", "20240607"))
 SMALL = dict(height=120, width=180)
@@ -28,7 +28,8 @@ def _audit(profile_name, cause, rng_seed, size=SMALL):
     rng = np.random.default_rng(rng_seed)
     magnitude = synthetic.random_magnitude(cause, rng)
     truth = synthetic.inject(base, cause, **size, **magnitude)
-    report = diagnose(base, measured_set(truth, rng_seed, **size), seed=rng_seed % 1000)
+    files = measured_set(truth, rng_seed, **size) + dark_frames(truth, rng_seed, **size)   # black-level evidence
+    report = diagnose(base, files, seed=rng_seed % 1000)
     return report, truth, magnitude
 
 

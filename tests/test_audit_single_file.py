@@ -39,3 +39,44 @@ def test_banding_in_a_single_file_is_named_once(camera):
     assert named == ["banding"], named
     assert report["findings"][0]["kept"]
     assert np.isfinite(report["findings"][0]["gain"]["after"])
+
+
+def _denoised_above(mosaic, info, level, strength):
+    """The raw of a camera that denoises in-camera above `level` (fraction of range): each CFA
+    plane's pixels above it are pulled towards their 3 x 3 same-colour mean by `strength`."""
+    out = np.asarray(mosaic, np.float64).copy()
+    black, span = float(np.mean(info.black_level)), float(info.white_level) - float(np.mean(info.black_level))
+    for dy in (0, 1):
+        for dx in (0, 1):
+            plane = out[dy::2, dx::2]
+            padded = np.pad(plane, 1, mode="reflect")
+            mean = sum(padded[1 + a:1 + a + plane.shape[0], 1 + b:1 + b + plane.shape[1]]
+                       for a in (-1, 0, 1) for b in (-1, 0, 1)) / 9
+            above = (mean - black) / span > level
+            plane[above] = (1 - strength) * plane[above] + strength * mean[above]
+    return np.clip(np.rint(out), 0, info.white_level).astype(np.uint16)
+
+
+@pytest.mark.slow
+def test_denoised_single_file_names_a_noise_cause_first(camera):
+    rng = np.random.default_rng(19)
+    (mosaic, info), = measured_set(camera, 3, n=1, height=HEIGHT, width=WIDTH)
+    denoised = _denoised_above(mosaic, info, level=float(rng.uniform(0.02, 0.08)), strength=float(rng.uniform(0.4, 0.8)))
+    report = diagnose(camera, [(denoised, info)], seed=3)
+    found = significant(report)
+    assert found and found[0].get("source", found[0]["cause"]) in ("noise_model", "noise_correlation"), \
+        [(f["cause"], f["evidence"][:120]) for f in found]
+    assert "black_level" not in [f["cause"] for f in found]
+    noise = next(f for f in found if f["cause"] == "noise_model")
+    assert noise["kept"] and noise["gain"]["after"] < noise["gain"]["before"], noise["gain"]
+
+
+@pytest.mark.slow
+def test_single_clean_dim_file_raises_no_black_level(camera):
+    """A dim scene has no black: its darkest content is not a pedestal."""
+    from g2r_jax.audit import scenes, simulate
+
+    dim = scenes.dead_leaves(5, 600, 900) * 0.25 + 0.1   # no black leaf, a fifth of the brightness
+    files = simulate.simulate(camera, dim[None], 77)
+    report = diagnose(camera, files, seed=5)
+    assert "black_level" not in [f["cause"] for f in significant(report)]

@@ -38,7 +38,7 @@ def test_example_writes_a_dng_rawpy_reads_with_the_profile_layout(tmp_path):
     record = json.loads((tmp_path / "manifest.jsonl").read_text().splitlines()[0])
     assert set(record) >= {"input", "output", "neutral", "cct", "iso", "seed"}
     profile = load_profile("Canon600D")
-    with rawpy.imread(tmp_path / record["output"]) as raw:   # manifest outputs are relative to its folder
+    with rawpy.imread(str(tmp_path / record["output"])) as raw:   # manifest outputs: relative to its folder
         assert raw.raw_image_visible.shape == (480, 640)
         assert "".join("RGBG"[c] for c in raw.raw_pattern.reshape(-1)).replace("G", "G") in ("RGGG", "RGGB", "RGGG")
         assert list(raw.black_level_per_channel) == [int(b) for b in np.asarray(profile.black_level)]

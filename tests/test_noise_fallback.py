@@ -95,3 +95,15 @@ def test_header_only_canon_350d_keeps_iso_and_warns_loudly(shared_data):
         model, source = noise_fallback.noise_and_source([info], (0, 1, 1, 2))
     assert np.asarray(model.iso).tolist() == [400.0]
     assert source.startswith("noise: NONE")
+
+
+@pytest.mark.slow
+def test_small_files_pool_their_blocks(tmp_path):
+    """8 files of 256 x 384 have too few flat blocks each for a noise level function, not
+    together: the fallback pools their blocks and finds the injected noise."""
+    paths, shot, read = _write_files(tmp_path, None, n=8, height=256, width=384)
+    profile, messages = _fit(paths)
+    assert "NONE" not in profile.info.provenance, profile.info.provenance
+    injected = shot[:, None] * LEVELS + read[:, None]
+    fitted = noise_extension.predicted_variance(profile.noise, ISO, np.broadcast_to(LEVELS, (4, len(LEVELS))))
+    assert np.all(np.abs(fitted / injected - 1) < 0.15), fitted / injected

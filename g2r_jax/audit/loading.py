@@ -102,9 +102,11 @@ def folder_of(items) -> Path:
     return Path(str(first[1].path if isinstance(first, (tuple, list)) else first)).parent
 
 
-def load_scenes(folder, n: int, height: int, width: int) -> np.ndarray:
-    """(n, H, W, 3) sRGB scenes in [0, 1] from the images of a folder (cycled if fewer than n),
-    each resized to the measured files' size."""
+def load_scenes(folder, n: int, height: int, width: int, *, with_names: bool = False):
+    """(n, H, W, 3) sRGB scenes from the images of a folder (cycled if fewer than n), each
+    resized to the measured files' size: uint8 codes when every image is 8-bit sRGB of that size
+    already (exactly what `g2r-convert` reads), else floats in [0, 1]. With `with_names`, also
+    the file name of each scene (the key of its simulation, `convert.file_key`)."""
     import jax
 
     from g2r_jax.colour.conversions import linear_to_srgb
@@ -116,11 +118,19 @@ def load_scenes(folder, n: int, height: int, width: int) -> np.ndarray:
     paths = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_EXTENSIONS)
     if not paths:
         raise DngError(folder, f"no scene images ({', '.join(IMAGE_EXTENSIONS)}) in this folder")
-    scenes = []
-    for i in range(n):
-        # the project's reader: 8/16-bit sRGB or linear EXR, with its checks and error messages
-        image, encoding = read_image(paths[i % len(paths)])
-        if encoding == "linear":
-            image = np.asarray(linear_to_srgb(np.clip(image, 0.0, 1.0)))
-        scenes.append(np.asarray(jax.image.resize(image, (height, width, 3), "linear"), np.float32))
-    return np.stack(scenes)
+    from g2r_jax.io.images import read_image_uint8
+
+    codes = [read_image_uint8(path) for path in paths[:n]]
+    if all(c is not None and c.shape == (height, width, 3) for c in codes):
+        scenes = np.stack([codes[i % len(codes)] for i in range(n)])
+    else:
+        scenes = []
+        for i in range(n):
+            # the project's reader: 8/16-bit sRGB or linear EXR, with its checks and error messages
+            image, encoding = read_image(paths[i % len(paths)])
+            if encoding == "linear":
+                image = np.asarray(linear_to_srgb(np.clip(image, 0.0, 1.0)))
+            scenes.append(np.asarray(jax.image.resize(image, (height, width, 3), "linear"), np.float32))
+        scenes = np.stack(scenes)
+    names = [paths[i % len(paths)].name for i in range(n)]
+    return (scenes, names) if with_names else scenes

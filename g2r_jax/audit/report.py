@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from g2r_jax.io.atomic import atomic_write_bytes
+from g2r_jax.audit import wording
 
 
 def _plain(value):
@@ -38,13 +39,17 @@ def _plain(value):
     return value
 
 
-FINDING_KEYS = ("cause", "significant", "score", "statistic", "evidence", "params", "gain", "p", "kept", "candidate")
+FINDING_KEYS = ("cause", "significant", "score", "statistic", "evidence", "params", "gain", "p", "kept", "candidate",
+                "sentence", "action", "p_words")
 
 
 def to_json(report: dict) -> dict:
     """The REPORT.json document (the extended SensorProfile and plot data are left out)."""
     document = {k: v for k, v in report.items() if k not in ("profile", "plots")}
-    document["findings"] = [{k: f[k] for k in FINDING_KEYS if k in f} for f in report["findings"]]
+    findings = [dict(f, sentence=wording.sentence(f), action=wording.action(f, report), p_words=wording.p_words(f["p"]),
+                     evidence=wording.clean(f["evidence"])) for f in report["findings"]]
+    document["findings"] = [{k: f[k] for k in FINDING_KEYS if k in f} for f in findings]
+    document["ranking"] = wording.RANKING.format(cap=report.get("score_cap", 40.0))
     return _plain(document)
 
 
@@ -65,8 +70,20 @@ def gain_words(gain: dict | None, kept=None) -> str:
     return f"{gain['metric']}: {before:.4g} -> {after:.4g} ({change:+.0f} %, {where}{verdict})"
 
 
+def setting_words(report: dict) -> list:
+    """Lines on what was compared: bursts (noise over time), dark frames (black level), lens shading."""
+    lines = []
+    for burst in report.get("bursts") or []:
+        lines.append(f"{len(burst)} files are frames of one scene (a burst): its noise is measured over time, pixel "
+                     "by pixel (photon transfer), and it counts as one scene in the other tests")
+    if report.get("n_dark_frames"):
+        lines.append(f"{report['n_dark_frames']} dark frame(s) found: they give the black level")
+    return lines
+
+
 def summary(report: dict) -> str:
-    """A readable summary: significant findings first, with their gain."""
+    """A readable summary: per significant finding a plain sentence, what to do, the held-out
+    gain; the technical evidence is in REPORT.json and the HTML page's details."""
     evidence = []
     if report.get("n_measured"):
         sizes = report.get("sizes") or [report["size"]]
@@ -77,18 +94,19 @@ def summary(report: dict) -> str:
     if report.get("n_charts"):
         evidence.append(f"{report['n_charts']} measured chart images")
     lines = [f"g2r-diagnose: {', '.join(evidence)}, family-wise alpha {report['alpha']}"]
+    lines += [f"  {line}" for line in setting_words(report)]
     significant = [f for f in report["findings"] if f["significant"]]
     if not significant:
         lines.append("no significant difference between the measured files and the simulation")
-    for f in significant:
-        lines.append(f"* {f['cause']}  (score {f['score']:.1f}, p {f['p']:.2g})")
-        lines.append(f"    {f['evidence']}")
-        if f.get("params"):
-            lines.append(f"    parameters: {_params_words(f['params'])}")
+    for k, f in enumerate(significant, 1):
+        name = f["cause"] if f["cause"] != "unexplained" else f"unexplained ({f.get('candidate') or f.get('source')})"
+        lines.append(f"{k}. {name}: {wording.sentence(f)}")
+        lines.append(f"   what to do: {wording.action(f, report)}")
         if f.get("gain"):
-            lines.append(f"    held-out {gain_words(f['gain'], f.get('kept'))}")
-    for u in report["unexplained"]:
-        lines.append(f"! unexplained: {u['statistic']}: {u['evidence']}")
+            lines.append(f"   held-out {gain_words(f['gain'], f.get('kept'))}")
+        lines.append(f"   ({wording.p_words(f['p'])}, score {f['score']:.1f}; details in the report)")
+    if len(significant) > 1:
+        lines.append(wording.RANKING.format(cap=report.get("score_cap", 40.0)))
     lines.append(f"time {report['timing']['total_s']:.1f} s")
     return "\n".join(lines)
 
@@ -255,19 +273,25 @@ def write_html(report: dict, folder) -> Path | None:
         title = f["cause"] if f["cause"] != "unexplained" else f"unexplained ({f.get('candidate') or 'no candidate'})"
         sections.append(
             f"<div class='finding'><h2>{html.escape(title)}</h2>"
-            f"<p>score {f['score']:.1f}, p = {f['p']:.2g}. <i>{html.escape(f['statistic'])}</i></p>"
-            f"<p>{html.escape(f['evidence'])}</p>{image}{params}<p class='gain'>{gain}</p></div>")
+            f"<p><b>{html.escape(wording.sentence(f))}</b></p>"
+            f"<p>What to do: {html.escape(wording.action(f, report))}</p>{image}<p class='gain'>{gain}</p>"
+            f"<details><summary>details</summary><p>{html.escape(wording.p_words(f['p']))}, score {f['score']:.1f}. "
+            f"<i>{html.escape(f['statistic'])}</i></p><p>{html.escape(wording.clean(f['evidence']))}</p>{params}"
+            f"</details></div>")
     if not sections:
         sections.append("<p>No significant difference between the measured files and the simulation.</p>")
+    elif len(sections) > 1:
+        sections.append(f"<p>{html.escape(wording.RANKING.format(cap=report.get('score_cap', 40.0)))}</p>")
     rows = "".join(
         f"<tr><td>{html.escape(str(f['cause']))}</td><td class='{'yes' if f['significant'] else ''}'>"
-        f"{'yes' if f['significant'] else 'no'}</td><td>{f['score']:.2f}</td><td>{f['p']:.2g}</td>"
-        f"<td>{html.escape(f['evidence'])}</td></tr>" for f in report["findings"])
+        f"{'yes' if f['significant'] else 'no'}</td><td>{f['score']:.2f}</td><td>{html.escape(wording.p_words(f['p']))}</td>"
+        f"<td>{html.escape(wording.clean(f['evidence']))}</td></tr>" for f in report["findings"])
     head = html.escape(summary(report).splitlines()[0])
+    head += "".join(f"<br>{html.escape(line)}" for line in setting_words(report))
     page = folder / "report.html"
     atomic_write_bytes(page, (
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>g2r-diagnose</title><style>{_STYLE}</style></head>"
         f"<body><h1>g2r-diagnose</h1><p>{head}</p>{''.join(sections)}"
-        f"<h2>All tests</h2><table><tr><th>cause</th><th>significant</th><th>score</th><th>p</th><th>evidence</th></tr>"
-        f"{rows}</table><p>time {report['timing']['total_s']:.1f} s</p></body></html>\n").encode())
+        f"<details><summary>All tests (details)</summary><table><tr><th>cause</th><th>significant</th><th>score</th><th>p</th><th>evidence</th></tr>"
+        f"{rows}</table></details><p>time {report['timing']['total_s']:.1f} s</p></body></html>\n").encode())
     return page

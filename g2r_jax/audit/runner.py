@@ -14,7 +14,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from g2r_jax.io.dng_info import DngError
-from g2r_jax.audit import evidence, gain, loading, simulate, stats
+from g2r_jax.batch.conversion import file_key
+from g2r_jax.audit import black_evidence, bursts, evidence, gain, loading, simulate, stats
 from g2r_jax.audit.causes import REGISTRY
 from g2r_jax.audit.scenes import scene_set
 from g2r_jax.audit.vocabulary import CAUSES, UNEXPLAINED
@@ -127,15 +128,17 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
     say(f"statistics of {len(items)} measured files")
     with_outliers = len(items) >= MIN_FILES_FOR_DEFECTS
 
-    def statistics_of(index_item):
+    def statistics_of(index_item, pedestal_dn=None):
         # one file in memory per worker: statistics are small, 12-MP mosaics are not
         index, item = index_item
         try:
             (mosaic, info), = loading.load_measured([item])
         except DngError as error:
             return error
-        return stats.file_statistics(mosaic, info, profile, with_outliers=with_outliers, seed=seed + index,
-                                     nlf_tiles=evidence.tiles_per_half(len(items)))
+        found = stats.file_statistics(mosaic, info, profile, with_outliers=with_outliers, seed=seed + index,
+                                      nlf_tiles=evidence.tiles_per_half(len(items)), pedestal_dn=pedestal_dn)
+        found["item"] = index
+        return found
 
     measured_stats = []
     # numpy releases the GIL in the large array operations, so files overlap on several cores
@@ -149,16 +152,38 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
             measured_stats.append(result)
     if not measured_stats:
         raise DngError(loading.folder_of(items), "no usable measured DNG files")
+    pedestal = measured_black(measured_stats, profile)
+    if pedestal is not None:   # scene-independent evidence of another black: measure from it
+        say("black level differs from the profile's: statistics measured from the measured black")
+        with ThreadPoolExecutor(max(1, min(MEASURED_WORKERS, len(items), _cores()))) as pool:
+            measured_stats = list(pool.map(lambda f: statistics_of((f["item"], items[f["item"]]), pedestal),
+                                           measured_stats))
+    originals = items
+    units, groups = independent_files(measured_stats)
+    for group in groups:
+        say(f"photon transfer over a burst of {len(group)} frames")
+        first = measured_stats[group[0]]
+        first["temporal"] = burst_noise([originals[measured_stats[i]["item"]] for i in group], first, profile,
+                                        pedestal)
     items = [f["name"] for f in measured_stats]
-    shapes = [f["shape"] for f in measured_stats]
+    shapes = [f["shape"] for f in (units or measured_stats)]
+    with_lens = lens_shading_in(measured_stats)
     n_sim = n_simulated or max(24, len(items))
     sizes = simulation_sizes(shapes, n_sim)
     if scenes is None:
         scene_groups = [scene_set(count, seed + 7919 + 97 * k, h, w) for k, ((h, w), count) in enumerate(sizes)]
+        scene_keys = [None] * len(scene_groups)
     elif isinstance(scenes, np.ndarray):
-        scene_groups = [scenes]
+        scene_groups, scene_keys = [scenes], [None]
     else:
-        scene_groups = [loading.load_scenes(scenes, n_sim, *sizes[0][0])]
+        # scene files are simulated with g2r-convert's key for (seed, file name): the audit's
+        # simulated file of a scene is then the file `g2r-convert --seed SEED` writes for it
+        loaded, names = loading.load_scenes(scenes, n_sim, *sizes[0][0], with_names=True)
+        keys, seen = [], {}
+        for name in names:   # a folder of fewer scenes than files is cycled: a repeat gets the next seed's key
+            keys.append(file_key(seed + seen.get(name, 0), name))
+            seen[name] = seen.get(name, 0) + 1
+        scene_groups, scene_keys = [loaded], [keys]
     sizes = [(tuple(int(v) for v in group.shape[1:3]), len(group)) for group in scene_groups]
     n_sim = sum(count for _, count in sizes)
 
@@ -169,9 +194,10 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         key = simulate.profile_key(p)
         if key in simulated_sets and (simulated_sets[key][0] or not outliers):
             return simulated_sets[key][1]
-        sim = [file for k, group in enumerate(scene_groups) for file in simulate.simulate(p, group, seed + 104729 + 97 * k)]
+        sim = [file for k, group in enumerate(scene_groups)
+               for file in simulate.simulate(p, group, seed + 104729 + 97 * k, keys=scene_keys[k], lens_shading=with_lens)]
         with ThreadPoolExecutor(max(1, min(MEASURED_WORKERS, _cores()))) as pool:
-            result = list(pool.map(lambda i: stats.file_statistics(*sim[i], profile, seed=seed + 7 * i,
+            result = list(pool.map(lambda i: stats.file_statistics(*sim[i], p, seed=seed + 7 * i,
                                                                    with_outliers=outliers), range(len(sim))))
         simulated_sets[key] = (outliers, result)
         return result
@@ -182,10 +208,21 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
 
     threshold = alpha / tests
 
+    black_files = [f for f in measured_stats if f.get("black") is not None]
+
+    def evidence_of(cause):
+        """The measured files a cause is tested on: for the black level those with black-level
+        evidence (dark frames, optical-black pixels; all files when none has any, to say so), so
+        that its cross-validation folds hold evidence; for the others the independent scenes
+        (`independent_files`)."""
+        return (black_files or measured_stats) if cause.name == "black_level" else units
+
     def test_all(causes, sim_stats, current):
         out = []
         for cause in causes:
-            finding = cause.test(measured_stats, sim_stats, current, n_permutations=n_permutations, seed=seed)
+            if not evidence_of(cause):
+                continue
+            finding = cause.test(evidence_of(cause), sim_stats, current, n_permutations=n_permutations, seed=seed)
             finding["significant"] = cause.is_significant(finding, threshold)
             finding["tolerance"] = cause.tolerance
             finding["params"], finding["gain"] = {}, None
@@ -202,6 +239,8 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
     remaining = list(registry)
     while remaining:
         results = test_all(remaining, current_stats, extended)
+        if not results:
+            break
         top = results[0]
         if not top["significant"]:
             done.extend(results)
@@ -214,10 +253,11 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
             done.append(dict(top, cause=UNEXPLAINED, kept=False, source=cause.name))
             continue
         say(f"cross-validating the {cause.name} extension")
-        top["gain"] = gain.cross_validate(cause, measured_stats, current_stats, extended, simulate_stats,
-                                          folds=min(folds, len(items)), seed=seed)
+        files = evidence_of(cause)
+        top["gain"] = gain.cross_validate(cause, files, current_stats, extended, simulate_stats,
+                                          folds=min(folds, len(files)), seed=seed)
         if top["gain"]["after"] < top["gain"]["before"]:
-            top["params"] = cause.fit(measured_stats, current_stats, extended, seed=seed)
+            top["params"] = cause.fit(files, current_stats, extended, seed=seed)
             top["kept"] = True
             extended = cause.apply(extended, top["params"])
             current_stats = simulate_stats(extended)
@@ -236,17 +276,74 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         if f["significant"] and cause is not None:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
-                f["plot"] = cause.plot(measured_stats, simulated_stats, profile, extended if f.get("kept") else None)
+                f["plot"] = cause.plot(evidence_of(cause), simulated_stats, profile, extended if f.get("kept") else None)
     timing["total_s"] = time.perf_counter() - started
     return {
         "findings": findings, "unexplained": unexplained,
-        "vocabulary": list(CAUSES), "alpha": alpha, "tests": tests, "threshold_p": threshold,
+        "vocabulary": list(CAUSES), "alpha": alpha, "tests": tests, "threshold_p": threshold, "score_cap": SCORE_CAP,
         "n_measured": len(items), "n_simulated": n_sim, "seed": seed,
+        "n_dark_frames": sum(bool(f.get("dark_frame")) for f in measured_stats),
+        "bursts": [[measured_stats[i]["name"] for i in group] for group in groups],
+        "n_independent": len(units), "lens_shading_simulated": bool(with_lens),
         **({"n_charts": chart_report["n_charts"], "charts": chart_report["charts"]} if chart_report else {}),
         "size": [int(v) for v in shapes[0]], "sizes": sorted({tuple(int(v) for v in s) for s in shapes}),
         "simulated_size": list(sizes[0][0]), "simulated_sizes": [[h, w, count] for (h, w), count in sizes],
         "timing": timing, "profile": extended,
     }
+
+
+def measured_black(files, profile):
+    """(4,) DN: the sensor's black above the tag per position from the files' scene-independent
+    evidence (`black_evidence`), where it differs from the profile's pedestal by more than three
+    standard errors and `causes.black_level.RESOLUTION_DN`; None otherwise (the profile's
+    pedestal stands: the statistics measure from it)."""
+    from g2r_jax.audit.causes.black_level import RESOLUTION_DN
+    from g2r_jax.audit.causes.base import per_colour
+
+    found = [f["black"] for f in files if f.get("black") is not None]
+    if not found:
+        return None
+    mean, se, _ = black_evidence.pooled_offset(found)
+    current = np.asarray(profile.effects.black_pedestal, np.float64)
+    differs = np.isfinite(mean) & (np.abs(mean - current) > np.maximum(3 * se, RESOLUTION_DN))
+    if not differs.any():
+        return None
+    return per_colour(profile, np.where(np.isfinite(mean), mean, current))
+
+
+def independent_files(files):
+    """(units, bursts): the measured files that are independent scenes (dark frames left out;
+    a burst's frames count once, by its first frame, which carries the burst's temporal noise),
+    and the bursts (index lists, `bursts.find_bursts`). Frames of one scene share the scene's
+    statistics, so counting them as files would make a test over files see the scene N times."""
+    groups = bursts.find_bursts(files)
+    later = {i for group in groups for i in group[1:]}
+    units = [f for i, f in enumerate(files) if not f.get("dark_frame") and i not in later]
+    return units, groups
+
+
+def burst_noise(items, first, profile, pedestal_dn=None) -> dict:
+    """The temporal noise (`bursts.temporal_nlf`) of the burst of `items` (paths or in-memory
+    pairs), `first` the statistics of its first frame."""
+    frames, info = [], None
+    for item in items:
+        (mosaic, info), = loading.load_measured([item])
+        pedestal = np.asarray(profile.effects.black_pedestal if pedestal_dn is None else pedestal_dn, np.float64)
+        frames.append(bursts.frame_planes(mosaic, info.black_level, info.white_level, pedestal))
+    black = np.resize(np.asarray(info.black_level, np.float64).reshape(-1), 4)
+    span = float(info.white_level) - black
+    pedestal = np.resize(pedestal, 4) / span
+    clip = np.where(np.isfinite(first["clip"]) & (first["clip"] < 1.0), first["clip"], 1.0 - pedestal) - 2.0 / span
+    clip_low = -black / span - pedestal + 2.0 / span
+    return bursts.temporal_nlf(np.stack(frames), pedestal=pedestal, clip=clip, clip_low=clip_low,
+                               edges=evidence.nlf_edges())
+
+
+def lens_shading_in(files) -> bool:
+    """True when most measured files carry lens-shading opcodes (their raw is divided by the
+    lens gain, as `g2r-convert --lens-shading` writes): the simulation then does the same."""
+    carry = [bool(np.any(np.asarray(f.get("gain_map_shading", 0.0)) != 0)) for f in files]
+    return sum(carry) > len(carry) / 2
 
 
 def _explain_with_charts(chart_causes, profile, charts, threshold, folds, n_permutations, seed, say) -> dict:

@@ -44,7 +44,7 @@ def _simulate_batch(keys, images, neutrals, profile, lens_gain):
     return jax.vmap(lambda k, im, n: unprocess(k, im, profile, neutral=n, lens_gain=lens_gain))(keys, images, neutrals)
 
 
-def lens_shading(profile, height: int, width: int):
+def _lens_shading(profile, height: int, width: int):
     """(gain planes or None, OpcodeList2 bytes or None): the profile's lens-shading opcodes at
     this size, as `g2r-convert` writes them (the raw carries the inverse of the gain)."""
     if "OpcodeList2" not in dict(profile.info.opcode_lists):
@@ -83,7 +83,7 @@ def info_for(profile, metadata: dict, height: int, width: int, index: int = 0) -
         calibration_illuminants=colour_tags["calibration_illuminants"],
         color_matrices=colour_tags["color_matrices"], illuminant_data=colour_tags["illuminant_data"],
         as_shot_neutral=np.asarray(metadata["neutral"], np.float64),
-        baseline_exposure=float(profile.baseline_exposure), iso=float(metadata["iso"]))
+        baseline_exposure=float(profile.baseline_exposure), iso=float(np.round(metadata["iso"])))   # as g2r-convert writes it
 
 
 def profile_key(profile) -> str:
@@ -100,26 +100,33 @@ def profile_key(profile) -> str:
     return digest.hexdigest()
 
 
-def simulate(profile, scenes, seed: int, *, batch: int = 8) -> list[tuple[np.ndarray, DngInfo]]:
-    """Run the profile's simulation on every scene.
+def simulate(profile, scenes, seed: int, *, batch: int = 8, keys=None,
+             lens_shading: bool | None = None) -> list[tuple[np.ndarray, DngInfo]]:
+    """Run the profile's simulation on every scene: the files `g2r-convert` writes.
 
-    **Arguments:** `profile`: a SensorProfile; `scenes`: (N, H, W, 3) sRGB images in [0, 1];
+    **Arguments:** `profile`: a SensorProfile; `scenes`: (N, H, W, 3) sRGB images, uint8 codes
+    (as `g2r-convert` reads PNG/JPEG) or floats in [0, 1];
     `seed`: file i uses the key `image_key(seed, i)` (so a set is reproducible, and two profiles
-    simulated with the same seed see the same scenes and random draws).
+    simulated with the same seed see the same scenes and random draws); `keys`: the N keys
+    instead (`convert.file_key(seed, name)` gives `g2r-convert`'s file for that scene and seed);
+    `lens_shading`: divide the raw by the profile's lens gain and write its OpcodeList2 (as
+    `g2r-convert --lens-shading`); default: when the profile has lens-shading opcodes.
 
     **Returns:** a list of (uint16 mosaic (H, W), DngInfo).
     """
-    scenes = np.asarray(scenes, np.float32)
+    scenes = np.asarray(scenes)
+    if scenes.dtype != np.uint8:
+        scenes = scenes.astype(np.float32)
     n, height, width = scenes.shape[:3]
     padded = _profile.replace(pad_defects(profile, height), illuminants=_fixed_illuminants(profile))
-    lens_gain, opcode_list2 = lens_shading(profile, height, width)
+    lens_gain, opcode_list2 = (None, None) if lens_shading is False else _lens_shading(profile, height, width)
     out = []
     for start in range(0, n, batch):
         stop = min(start + batch, n)
         idx = list(range(start, stop)) + [start] * (batch - (stop - start))  # constant batch shape
-        keys = jnp.stack([image_key(seed, i) for i in idx])
-        neutrals = sample_neutrals(keys, profile.illuminants)
-        mosaics, metadata = _simulate_batch(keys, jnp.asarray(scenes[idx]), neutrals, padded, lens_gain)
+        keys_now = jnp.stack([image_key(seed, i) if keys is None else keys[i] for i in idx])
+        neutrals = sample_neutrals(keys_now, profile.illuminants)
+        mosaics, metadata = _simulate_batch(keys_now, jnp.asarray(scenes[idx]), neutrals, padded, lens_gain)
         mosaics = np.asarray(mosaics)
         metadata = {k: np.asarray(v) for k, v in metadata.items()}
         for j, i in enumerate(range(start, stop)):

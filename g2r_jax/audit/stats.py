@@ -2,8 +2,9 @@
 
 Each function takes one file's normalised CFA planes (4, H/2, W/2) (x = (DN - BlackLevel) /
 (WhiteLevel - BlackLevel), tile positions in row-major order) and returns a small vector. All
-but `dark_floor` work on planes from which the file's own dark floor was subtracted, so a black
-pedestal shows up in `dark_floor` only. `file_statistics` computes them all.
+but `dark_floor` work on planes from which the sensor's black (the BlackLevel tag plus the
+pedestal known from scene-independent evidence, `black_evidence`) was subtracted; `dark_floor`
+(the darkest scene content) is reported, never tested. `file_statistics` computes them all.
 """
 
 from __future__ import annotations
@@ -359,11 +360,20 @@ def _gain_map_log_corner(data: bytes, shape, cfa_pattern) -> np.ndarray:
     return out
 
 
+def thumbnail(planes, side: int = 16) -> np.ndarray:
+    """(4, side, side) block means of each plane on a side x side grid: the scene at a glance
+    (the frames of one burst have the same thumbnail up to noise); NaN for tiny planes."""
+    size = min(planes.shape[1:]) // side
+    if size < 1:
+        return np.full((4, side, side), np.nan)
+    return block_means(np.asarray(planes, np.float64), size)[:, :side, :side]
+
+
 SHADING_SIDE = 600   # planes larger than this (shorter side) are binned before the shading fit
 
 
 def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: int = 0,
-                    nlf_tiles: int | None = None) -> dict:
+                    nlf_tiles: int | None = None, pedestal_dn=None) -> dict:
     """All statistics of one file (mosaic (H, W) DN, its DngInfo) as a dict of numpy arrays.
 
     Keys: dark_floor (4), clip (4), band (2), nlf {"A", "B", "all"} (noise level function of each
@@ -373,32 +383,40 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: 
     shading (4, raw shading minus what the file's own GainMap puts there), gain_map_shading (4),
     brightness (1), noise_corr (1), outliers (rows, cols, values) or None, neutral (3), shape, name, span.
     `nlf_tiles`: tiles per half for the NLF (default `evidence.MAX_TILES`; `evidence.tiles_per_half`).
+    `pedestal_dn`: (4,) the sensor's black above the BlackLevel tag in DN, subtracted from the planes
+    of every statistic but `dark_floor` and `black` (default: the profile's `black_pedestal`). Only
+    scene-independent evidence (`black_evidence`) may set it: the measured dark floor reads the
+    darkest scene content, which in a dim scene is far above black.
+    Also: black (`black_evidence.file_evidence`: optical-black pixels or a dark frame, else None),
+    dark_frame (bool), thumbnail (4, 16, 16) block means (burst detection, `bursts`).
     """
-    from g2r_jax.audit import evidence
+    from g2r_jax.audit import black_evidence, evidence
 
     black = np.resize(np.asarray(info.black_level, np.float64).reshape(-1), 4)
     white = float(info.white_level)
     raw = to_normalised_planes(mosaic, black, white)
     span = white - black
     floor = dark_floor(raw)
-    planes = raw - floor[:, None, None]
+    found_black = black_evidence.file_evidence(mosaic, info, black, span)
+    dark_frame = found_black is not None and found_black["source"] == "dark frame"
+    pedestal = np.resize(np.asarray(profile.effects.black_pedestal if pedestal_dn is None else pedestal_dn,
+                                    np.float64), 4) / span
+    planes = raw - pedestal[:, None, None].astype(raw.dtype)
     spike = clipping_level(raw, white, span)
     # a spike at WhiteLevel is the tag's clamp (whatever the pedestal), not an early clip
-    clip = np.where(spike >= 1.0 - 0.5 / span, 1.0, spike - floor)
+    clip = np.where(spike >= 1.0 - 0.5 / span, 1.0, spike - pedestal)
     band = banding(planes)
     top = np.where(np.isfinite(spike), spike, 1.0) - 2.0 / span
     blocks = planes[0].size / 64
     # large files: the NLF of each half of the tiles, tested in closed form (on the
-    # floor-subtracted planes, like every statistic but the floor: a pedestal is black_level's);
+    # black-subtracted planes, like every statistic but the floor);
     # small files: the neighbour-pair NLF, compared with simulated files over files
-    nlf = (evidence.nlf_halves(planes, clip=top - floor, clip_low=-black / span + 2.0 / span - floor, seed=seed,
-                               max_tiles=nlf_tiles or evidence.MAX_TILES)
-           if blocks >= LARGE_BLOCKS else None)
+    nlf = (evidence.nlf_halves(planes, clip=top - pedestal, clip_low=-black / span + 2.0 / span - pedestal,
+                               seed=seed, max_tiles=nlf_tiles or evidence.MAX_TILES)
+           if blocks >= LARGE_BLOCKS and not dark_frame else None)
     if nlf is not None:
-        # the noise depends on the signal above the true black, which the BlackLevel tag (plus the
-        # profile's pedestal) says, not the measured floor: that reads the darkest scene content
-        # (above black in a scene without black areas) minus ~2.6 noise sigmas of a 4x4 mean
-        nlf = {half: dataclasses.replace(e, signal=e.signal + floor[:, None]) for half, e in nlf.items()}
+        # the NLF's signal axis is above the BlackLevel tag (`causes.noise_model.above_black`)
+        nlf = {half: dataclasses.replace(e, signal=e.signal + pedestal[:, None]) for half, e in nlf.items()}
     nlf_var, nlf_level = noise_level_function(planes, clip, band) if blocks < LARGE_BLOCKS else (None, None)
     greens = tuple(int(i) for i in np.flatnonzero(np.asarray(info.cfa_pattern) == 1)[:2])
     from g2r_jax.profile import fitting as _fit
@@ -408,10 +426,11 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: 
     shading_planes = block_means(planes, binning) if binning > 1 else planes
     gain_map = gain_map_log_corner(getattr(info, "opcode_lists", None), np.shape(mosaic), info.cfa_pattern)
     return {
-        "dark_floor": floor, "clip": clip, "band": band, "nlf": nlf, "blocks": blocks,
+        "dark_floor": floor, "black": found_black, "dark_frame": dark_frame, "thumbnail": thumbnail(planes),
+        "clip": clip, "band": band, "nlf": nlf, "blocks": blocks,
         "nlf_var": nlf_var, "nlf_level": nlf_level,
         "quantisation": evidence.quantisation_variance(black, white),
-        "iso": float(iso), "green": green_ratio(planes, greens, clip, floor),
+        "iso": float(iso), "green": green_ratio(planes, greens, clip),
         "shading": shading_profile(shading_planes, clip) - gain_map, "gain_map_shading": gain_map,
         "brightness": brightness(planes, None, clip), "noise_corr": noise_correlation(planes if _stride(planes) == 1 else evidence.tile_halves(planes)[0]),
         "outliers": outliers(planes, clip) if with_outliers else None,

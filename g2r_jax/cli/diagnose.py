@@ -36,7 +36,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--scenes", help="folder of scene images to simulate from (default: built-in "
                                          "dead-leaves scenes)")
     parser.add_argument("--extended-profile", type=Path, metavar="PROFILE_JSON",
-                        help="write the profile with the kept extensions here")
+                        help="write the profile with the kept extensions here (default: REPORT_profile.json "
+                             "next to the report, when an extension was kept)")
     parser.add_argument("--html", type=Path, metavar="DIR",
                         help="folder for report.html and plots (default: next to the report, REPORT_html/)")
     parser.add_argument("--seed", type=int, default=0, help="seed of everything random")
@@ -100,12 +101,19 @@ def _run(args) -> int:
         where = args.measured or args.charts
         what = f"these {len(paths)} file(s)" if paths else "these charts"
         raise DngError(where, f"cannot audit {what}: {error_message(error)}") from error
-    if args.extended_profile:
-        save_profile(result["profile"], args.extended_profile)
-        result["extended_profile"] = str(args.extended_profile)
+    kept = any(f.get("kept") for f in result["findings"])
+    extended_path = Path(args.extended_profile) if args.extended_profile else \
+        report_path.parent / f"{report_path.stem}_profile.json"
+    if args.extended_profile or kept:
+        save_profile(result["profile"], extended_path)
+        result["extended_profile"] = str(extended_path)
     report.write_json(result, report_path)
-    report.write_html(result, Path(args.html) if args.html else report_path.parent / (report_path.stem + "_html"))
+    page = report.write_html(result, Path(args.html) if args.html else report_path.parent / (report_path.stem + "_html"))
     print(report.summary(result))
+    print(f"report: {report_path}")
+    print(f"HTML report: {page}")
+    if result.get("extended_profile"):
+        print(f"extended profile (the profile with every kept extension): {result['extended_profile']}")
     if failed:
         print(f"g2r-diagnose: {len(failed)} measured file(s) left out (see above)", file=sys.stderr)
     return 1 if failed else 0

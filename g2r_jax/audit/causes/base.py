@@ -80,6 +80,7 @@ class Cause:
     tolerance: float = 0.0
     key: str = ""                 # file_statistics key of the per-file vector (default `vectors`)
     extensible: bool = True       # has an extension (fit/apply); else significant = unexplained
+    min_scenes: int = 1           # fewest independent scenes on which the statistic means something
     needs_outliers: bool = False  # its statistic needs stats.outliers on simulated files
 
     # -- what it measures
@@ -96,7 +97,12 @@ class Cause:
     def test(self, measured, simulated, profile, *, n_permutations: int = 2000, seed: int = 0) -> dict:
         """A finding: cause, score, p, magnitude (in the statistic's units), statistic,
         evidence (words), difference (per component). Permutation maxT over files; with fewer
-        than `MIN_FILES_PERMUTATION` measured files, the prediction-interval test instead."""
+        than `MIN_FILES_PERMUTATION` measured files, the prediction-interval test instead; with
+        fewer than `min_scenes`, not tested (score 0, p 1)."""
+        if len(measured) < self.min_scenes:
+            return {"cause": self.name, "score": 0.0, "p": 1.0, "magnitude": 0.0, "statistic": self.statistic,
+                    "evidence": f"needs at least {self.min_scenes} different scenes, {len(measured)} given: not tested",
+                    "difference": [], "tested": False}
         if len(measured) < MIN_FILES_PERMUTATION:
             return self.prediction_test(measured, simulated, profile)
         with warnings.catch_warnings():

@@ -127,6 +127,47 @@ def _large(files) -> list:
     return [f for f in files if f.get("nlf") is not None and f.get("blocks", 0) >= LARGE_BLOCKS]
 
 
+def _bursts(files) -> list:
+    """The files that carry a burst's temporal noise (`bursts.temporal_nlf`, key "temporal")."""
+    return [f for f in files if f.get("temporal") is not None]
+
+
+def temporal_log_ratio(profile, f, half: str):
+    """(L, se, signal) of a burst's temporal noise (`bursts.TemporalNoise`, one `half` of its
+    pixels): log(measured / model variance) per (position, bin), its standard error, the signal."""
+    e = f["temporal"][half]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        usable = np.isfinite(e.variance) & (e.variance > 0) & (e.signal > 0)
+        L = np.where(usable, np.log(e.variance) - np.log(model_variance(profile, f, e.signal)), np.nan)
+        se = np.where(usable, e.se / e.variance, np.nan)
+    return L, np.maximum(se, 1e-3), np.where(usable, e.signal, np.nan)
+
+
+def temporal_scales(files, profile, half: str = "A"):
+    """Scale factors (shot (4,), read (4,)) so that s shot x + r read + the model's other terms
+    (rounding, banding) match the bursts' temporal variance on `half` of their pixels: weighted
+    least squares per position over the bins (weights 1 / se), as a photon-transfer fit."""
+    shot_scale, read_scale = np.ones(4), np.ones(4)
+    rows = {p: ([], [], []) for p in range(4)}
+    for f in files:
+        e = f["temporal"][half]
+        x = above_black(profile, f, e.signal)
+        _, shot, read = noise_prediction(profile, f["iso"], x)
+        base = np.asarray(shot)[:, None] * np.maximum(x, 0) + np.asarray(read)[:, None]
+        extra = model_variance(profile, f, e.signal) - base
+        for p in range(4):
+            ok = np.isfinite(e.variance[p]) & np.isfinite(x[p]) & (e.se[p] > 0)
+            rows[p][0].append(np.stack([shot[p] * np.maximum(x[p, ok], 0), np.full(ok.sum(), read[p])], 1))
+            rows[p][1].append(e.variance[p, ok] - extra[p, ok])
+            rows[p][2].append(1 / e.se[p, ok])
+    for p in range(4):
+        design, target, w = (np.concatenate(v) for v in rows[p])
+        if len(target) >= 2:
+            solution = np.linalg.lstsq(design * w[:, None], target * w, rcond=None)[0]
+            shot_scale[p], read_scale[p] = np.clip(solution, 0.02, 50.0)
+    return shot_scale, read_scale
+
+
 RELIABLE_BLOCKS = 100   # a bin with this many blocks is compared in closed form even where no simulated file has it
 
 
@@ -264,6 +305,10 @@ class NoiseModel(Cause):
         return np.stack([pair_vector(f, profile) for f in files])
 
     def test(self, measured, simulated, profile, *, n_permutations=2000, seed=0):
+        if _bursts(measured):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                return self._test(_bursts(measured), profile, temporal=True)
         large = _large(measured)
         if not large:
             finding = super().test(measured, simulated, profile, n_permutations=n_permutations, seed=seed)
@@ -273,8 +318,9 @@ class NoiseModel(Cause):
             warnings.simplefilter("ignore", RuntimeWarning)
             return self._test(large, profile)
 
-    def _test(self, measured, profile):
-        L, se, signal, _ = corrected(profile, measured, None)
+    def _test(self, measured, profile, temporal=False):
+        L, se, signal = (pooled([temporal_log_ratio(profile, f, "all") for f in measured]) if temporal
+                         else corrected(profile, measured, None)[:3])
         z = L / se
         finite = np.isfinite(z)
         if not finite.any():
@@ -289,11 +335,16 @@ class NoiseModel(Cause):
         levels = np.nanmedian(signal, axis=0)
         per_level = np.nanmedian(ratio, axis=0)
         table = ", ".join(f"{100 * x:.2g}%: x{r:.2f}" for x, r in zip(levels, per_level) if np.isfinite(r))
-        evidence = (f"measured / model noise variance by signal level (median over positions; files pooled): {table}; "
+        source = (f"temporal variance over a burst of {measured[0]['temporal']['all'].frames} frames (photon transfer)"
+                  if temporal else f"flat blocks of {len(measured)} file(s), pooled")
+        evidence = (f"measured / model noise variance by signal level (median over positions; {source}): {table}; "
                     f"largest deviation x{ratio[worst]:.3g} at {100 * signal[worst]:.3g}% of range, CFA position "
-                    f"{worst[0]}, z = {z[worst]:.1f}; {int(finite.sum())} bins of {len(measured)} file(s) pooled, Bonferroni p = {p:.3g}")
+                    f"{worst[0]}, z = {z[worst]:.1f}; {int(finite.sum())} bins, Bonferroni p = {p:.3g}")
         return {"cause": self.name, "score": score, "p": p, "magnitude": magnitude, "statistic": self.statistic,
-                "evidence": evidence, "difference": np.nan_to_num(L).tolist(), "closed_form": True}
+                "evidence": evidence, "difference": np.nan_to_num(L).tolist(), "closed_form": True,
+                "temporal": temporal, "ratio_by_level": [[float(x), float(r)] for x, r in zip(levels, per_level)
+                                                         if np.isfinite(r)],
+                "worst": {"ratio": float(ratio[worst]), "level": float(signal[worst])}}
 
     def plot(self, measured, simulated, profile, extended=None):
         """The first file's measured NLF (both halves, with intervals) and the variance the
@@ -313,6 +364,9 @@ class NoiseModel(Cause):
                 "model_curve": curve(profile), "extended_curve": None if extended is None else curve(extended)}
 
     def fit(self, measured, simulated, profile, *, seed=0):
+        if _bursts(measured):
+            shot, read = temporal_scales(_bursts(measured), profile, "A")
+            return {"shot_scale": shot.tolist(), "read_scale": read.tolist(), "fitted_on": "burst (temporal), half A"}
         large = _large(measured)
         if large:
             return fit_level_function(large, profile)
@@ -327,13 +381,18 @@ class NoiseModel(Cause):
             dtype = profile.noise.shot.dtype
             fields = {k: jnp.asarray(params[k], dtype) for k in ("iso", "shot", "read", "level_knots", "level_variance")}
             noise = type(profile.noise)(iso_range=profile.noise.iso_range,
-                                        correlation_kernel=profile.noise.correlation_kernel, **fields)
+                                        correlation_kernel=profile.noise.correlation_kernel,
+                                        read_excludes_quantisation=profile.noise.read_excludes_quantisation, **fields)
             return _profile.replace(profile, noise=noise)
         shot = profile.noise.shot * as_profile_dtype(profile, params["shot_scale"])[None]
         read = profile.noise.read * as_profile_dtype(profile, params["read_scale"])[None]
         return _profile.replace(profile, noise=_profile.replace(profile.noise, shot=shot, read=read))
 
     def discrepancy(self, measured, simulated, profile, *, seed=0, half="B"):
+        if _bursts(measured):
+            L = pooled([temporal_log_ratio(profile, f, half) for f in _bursts(measured)])[0]
+            values = L[np.isfinite(L)]
+            return float(np.sqrt(np.mean(values**2))) if values.size else 0.0
         if not _large(measured):
             return super().discrepancy(measured, simulated, profile, seed=seed)
         L = corrected(profile, _large(measured), None, half)[0]
@@ -342,7 +401,11 @@ class NoiseModel(Cause):
 
     def heldout(self, fit_files, held_files, simulated, profile, simulate_stats, *, seed=0):
         """Fit on half A of the fit files' tiles, compare on half B of the held-out files (regions
-        and files the fit did not see); closed form, no re-simulation."""
+        and files the fit did not see); closed form, no re-simulation. Bursts: fit on the
+        temporal noise of half A of the pixels, compare on half B."""
+        if _bursts(fit_files) and _bursts(held_files):
+            extended = self.apply(profile, self.fit(fit_files, simulated, profile, seed=seed))
+            return (self.discrepancy(held_files, simulated, profile), self.discrepancy(held_files, simulated, extended))
         if not (_large(fit_files) and _large(held_files)):
             return super().heldout(fit_files, held_files, simulated, profile, simulate_stats, seed=seed)
         extended = self.apply(profile, self.fit(fit_files, simulated, profile, seed=seed))

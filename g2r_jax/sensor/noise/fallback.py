@@ -60,24 +60,41 @@ def _levels(info):
 def measure_from_pixels(info, *, n_bootstrap: int = 50):
     """(shot (4,), read (4,)) per tile position measured from one DNG's own pixels, or None with
     the reason (pixels not decodable, too few flat regions)."""
-    from g2r_jax.io.dng_read import read_dng_pixels
+    found, problems = measure_pooled([info], n_bootstrap=n_bootstrap)
+    return (found, "") if found is not None else (None, problems[0][1] if problems else "no pixels")
 
-    try:
-        mosaic = read_dng_pixels(info.path, info)
-    except Exception as error:  # noqa: BLE001 - DngError and anything LibRaw raises: reported, not fatal
-        return None, str(getattr(error, "problem", error))
+
+def measure_pooled(infos, *, n_bootstrap: int = 50):
+    """(shot (4,), read (4,)) per tile position measured from the pixels of several DNGs of one
+    ISO and one black/white level, their flat blocks pooled into one noise level function (the
+    audit's estimator, `estimation.estimate_noise_level_function`, on the blocks of every file:
+    small files have too few flat blocks each, not together), or None when no file decodes or
+    the pooled blocks are too few; and the [(file name, reason)] of the files that failed."""
+    from g2r_jax.io.dng_read import read_dng_pixels
     from g2r_jax.sensor.noise.estimation import to_normalised_planes
 
-    black, white = _levels(info)
-    planes = to_normalised_planes(mosaic, black, white)
-    estimate = _estimation.estimate_noise_level_function(planes, clip_low=-black / (white - black),
-                                                         n_bootstrap=n_bootstrap)
+    blocks, problems, levels = [], [], None
+    for info in infos:
+        try:
+            mosaic = read_dng_pixels(info.path, info)
+        except Exception as error:  # noqa: BLE001 - DngError and anything LibRaw raises: reported, not fatal
+            problems.append((Path(info.path).name, str(getattr(error, "problem", error))))
+            continue
+        levels = levels or _levels(info)
+        blocks.append(_estimation.block_statistics(to_normalised_planes(mosaic, *levels)))
+    if not blocks:
+        return None, problems
+    black, white = levels
+    estimate = _estimation.estimate_noise_level_function(blocks[0].concatenate(*blocks[1:]),
+                                                         clip_low=-black / (white - black), n_bootstrap=n_bootstrap)
     shot, read = _extension.fit_shot_read(estimate, floor_variance=0.0)
     if not (np.all(np.isfinite(shot)) and np.all(np.isfinite(read))):
-        return None, "too few flat regions to measure the noise"
+        names = ", ".join(Path(i.path).name for i in infos)
+        return None, problems + [(names, f"too few flat regions to measure the noise "
+                                         f"(pooled over {len(blocks)} file(s))")]
     # rounding to DN is part of the measured variance and of every raw: keep it in `read`
     read = np.maximum(read, _estimation.quantisation_variance(black, white))
-    return (shot, read), ""
+    return (shot, read), problems
 
 
 def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = True):
@@ -86,6 +103,7 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
     `measure=False` skips the pixel measurement (tags only). `source` is one sentence for the
     profile's provenance."""
     tag_rows, measured_rows, floored_rows, kinds, problems = {}, {}, {}, {}, []
+    to_measure = {}
     for info in infos:
         iso = float(info.iso) if info.iso else 100.0
         kind = classify_noise_profile(info)
@@ -93,11 +111,25 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
         if kind == "ok":
             tag_rows.setdefault(iso, []).append(_tag_per_position(info, cfa_pattern))
             continue
-        measured, reason = measure_from_pixels(info) if measure else (None, "pixels not measured")
-        if measured is not None:
-            measured_rows.setdefault(iso, []).append(np.stack(measured, axis=1))
+        # files of one ISO and one black/white level pool their flat blocks (`measure_pooled`)
+        to_measure.setdefault((iso, tuple(_levels(info)[0]), _levels(info)[1]), []).append(info)
+    unmeasured = []
+    for (iso, _, _), group in to_measure.items():
+        if not measure:
+            problems.extend((Path(i.path).name, "pixels not measured") for i in group)
+            unmeasured.extend(group)
             continue
-        problems.append((Path(info.path).name, reason))
+        measured, failed = measure_pooled(group)
+        problems.extend(failed)
+        if measured is not None:
+            # one row per file measured, so that the per-ISO median weighs files, not groups
+            n_read = len(group) - sum(1 for name, _ in failed if name in {Path(i.path).name for i in group})
+            measured_rows.setdefault(iso, []).extend([np.stack(measured, axis=1)] * max(n_read, 1))
+        else:
+            unmeasured.extend(group)
+    for info in unmeasured:
+        iso = float(info.iso) if info.iso else 100.0
+        kind = classify_noise_profile(info)
         if kind == "degenerate":
             table = _tag_per_position(info, cfa_pattern)
             black, white = _levels(info)
