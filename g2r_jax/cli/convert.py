@@ -30,11 +30,9 @@ class _ListProfiles(argparse.Action):
         super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
 
     def __call__(self, parser, namespace, values, option_string=None):
-        from g2r_jax.profile.shipped import describe_shipped
+        from g2r_jax.profile.provenance import describe_shipped_profiles
 
-        rows = describe_shipped()
-        width = max((len(name) for name, _ in rows), default=0)
-        print("\n".join(f"{name:{width}s}  {line}" for name, line in rows))
+        print(describe_shipped_profiles())   # camera, ISO range, sources of colour, noise, illuminants
         parser.exit(0)
 
 

@@ -112,8 +112,15 @@ def check_document(document, source: str = "<profile>") -> None:
     c = _Check(source)
     if not isinstance(document, dict):
         c.fail("document", f"expected a JSON object, got {type(document).__name__}")
-    for key in ("name", "provenance", "cfa_pattern"):
+    for key in ("name", "cfa_pattern"):
         c.text(document.get(key), key)
+    provenance = document.get("provenance")
+    if isinstance(provenance, dict):   # one text per part (g2r_jax.profile.provenance)
+        for key, value in provenance.items():
+            if not isinstance(value, str):
+                c.fail(f"provenance.{key}", f"expected text, got {type(value).__name__}")
+    else:
+        c.text(provenance, "provenance")
     camera = c.obj(document.get("camera"), "camera")
     for key, value in camera.items():
         c.text(value, f"camera.{key}")

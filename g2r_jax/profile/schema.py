@@ -24,10 +24,11 @@ from g2r_jax.illuminants import distributions as _illuminants
 from g2r_jax import sensor as _sensor
 from g2r_jax.colour.dng_model import DngColourModel
 from g2r_jax.colour.spectral import model as _spectral_model
+from g2r_jax.profile import provenance as _provenance
 from g2r_jax.profile.checks import ProfileError, check_document
-
 from g2r_jax.profile.shipped import (  # re-exported: the shipped profiles' place and names
     SHIPPED_PROFILES_DIR, UnknownProfile, _shipped_profiles_dir, profile_path, shipped_profiles)
+
 SCHEMA_NAME = "g2r_jax.sensor_profile"
 SCHEMA_VERSION = 1
 
@@ -47,6 +48,7 @@ class ProfileInfo:
     calibration_illuminants: tuple = (21,)   # EXIF codes, in the order of the colour model's matrices
     provenance: str = ""
     opcode_lists: tuple = ()   # (("OpcodeList3", "hex..."), ...) from the camera's DNGs
+    provenance_parts: tuple = ()   # (("colour", text), ...) when given per part (`g2r_jax.profile.provenance`)
 
 
 class SensorProfile(eqx.Module):
@@ -141,7 +143,7 @@ def profile_to_dict(profile: SensorProfile) -> dict:
         "version": SCHEMA_VERSION,
         "name": info.name,
         "camera": {"unique_camera_model": info.unique_camera_model, "make": info.make, "model": info.model},
-        "provenance": info.provenance,
+        "provenance": _provenance.provenance_value(info),
         "cfa_pattern": profile.cfa_string,
         "black_level": _list(profile.black_level),
         "white_level": float(profile.white_level),
@@ -306,12 +308,13 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
 
     camera = r.get(document, "camera", "camera", optional=True, default={})
     opcode_lists = r.get(document, "opcode_lists", "opcode_lists", optional=True, default={})
+    provenance, provenance_parts = _provenance.split_provenance(document.get("provenance"))
     info = ProfileInfo(
         name=str(document.get("name", Path(source).stem)),
         unique_camera_model=str(camera.get("unique_camera_model", "g2r_jax camera")),
         make=str(camera.get("make", "")), model=str(camera.get("model", "")),
         calibration_illuminants=colour.calibration_illuminants,   # the model's order
-        provenance=str(document.get("provenance", "")),
+        provenance=provenance, provenance_parts=provenance_parts,
         opcode_lists=tuple(sorted((str(k), str(v)) for k, v in opcode_lists.items())))
     spectral_doc = r.get(document, "spectral", "spectral", optional=True)
     spectral = None if spectral_doc is None else _spectral_model.spectral_from_dict(spectral_doc, r.fail, dtype)
