@@ -116,9 +116,11 @@ def test_list_profiles_says_what_each_profile_is(capsys):
     assert convert.main(["--list-profiles"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     names = sorted(p.stem for p in SHIPPED_PROFILES_DIR.glob("*.json"))
-    assert sorted(line.split()[0] for line in lines) == names
-    gopro = next(line for line in lines if line.startswith("gopro_hero6 "))
-    assert "GoPro HERO6 Black" in gopro and "illuminant model" in gopro
+    heads = [k for k, line in enumerate(lines) if not line.startswith(" ")]   # one per profile, then its sources
+    assert sorted(lines[k].split()[0] for k in heads) == names
+    gopro = next(k for k in heads if lines[k].startswith("gopro_hero6 "))
+    assert "GoPro HERO6 Black" in lines[gopro] and "ISO 100-100" in lines[gopro]
+    assert [line.split(":")[0].strip() for line in lines[gopro + 1:gopro + 4]] == ["colour", "noise", "illuminants"]
 
 
 def test_a_profile_argument_is_a_shipped_name_unless_it_is_a_file(tmp_path, monkeypatch):

@@ -73,7 +73,7 @@ def describe_profile(document: dict) -> str:
     iso_range = noise.get("iso_range") or [min(noise.get("iso") or [0]), max(noise.get("iso") or [0])]
     noiseless = not any(value > 0 for row in (noise.get("shot") or []) + (noise.get("read") or [])
                         for value in (row if isinstance(row, list) else [row]))
-    head = f"{name}: {camera}, ISO {iso_range[0]:g}-{iso_range[1]:g}"
+    head = f"{name}  {camera}, ISO {iso_range[0]:g}-{iso_range[1]:g}"
     if noiseless:
         head += "  [NO NOISE MODEL: its conversions are noise-free]"
     text, parts = split_provenance(document.get("provenance"))
@@ -97,5 +97,5 @@ def describe_shipped_profiles() -> str:
             document = json.loads((SHIPPED_PROFILES_DIR / f"{name}.json").read_text())
             entries.append(describe_profile({"name": name, **document}))
         except (OSError, ValueError, TypeError, AttributeError, IndexError) as error:
-            entries.append(f"{name}: unreadable ({type(error).__name__})")
+            entries.append(f"{name}  unreadable ({type(error).__name__})")
     return "\n".join(entries)
