@@ -75,3 +75,10 @@ def test_readme_links_resolve():
     for target in re.findall(r"\]\(([^)#]+)\)", text):
         if "://" not in target:
             assert (ROOT / target).exists(), target
+
+
+def test_every_shipped_profile_is_on_the_shipped_cameras_page():
+    from g2r_jax.profile.schema import shipped_profiles
+
+    page = (PAGES / "guide" / "shipped_cameras.md").read_text()
+    assert [name for name in shipped_profiles() if f"`{name}`" not in page] == []
