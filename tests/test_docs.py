@@ -18,7 +18,7 @@ PAGES = ROOT / "docs" / "pages"
 BLOCK = re.compile(r"(?P<skip><!-- not-run:[^>]*-->\s*\n)?```(?P<lang>\w*)\n(?P<code>.*?)\n```", re.S)
 # Pages whose blocks run several commands (each compiles the pipeline once): the slow suite.
 SLOW_PAGES = {"getting_started.md", "guide/your_camera.md", "guide/converting.md", "guide/night_scenes.md",
-              "guide/spectral.md"}
+              "guide/spectral.md", "guide/reading_an_audit.md"}
 
 
 def code_blocks(text: str) -> list[tuple[str, str]]:
