@@ -37,8 +37,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help="CSV of measured illuminants (r_over_g,g,b_over_g) instead of as-shot neutrals")
     parser.add_argument("--calibration", type=Path, metavar="DNG|JSON",
                         help="DNG (or profile JSON) giving the colour matrices, CFA and levels (with --illuminants)")
-    parser.add_argument("--illuminant-model", choices=["auto", "gaussian", "mixture", "locus"], default="auto",
-                        help="auto: Gaussian + convex hull with >= 3 illuminants, else the single-DNG locus")
+    parser.add_argument("--illuminant-model", default="auto",
+                        choices=["auto", "gaussian", "mixture", "locus", "prior", "prior-night", "prior-day-night"],
+                        help="auto: Gaussian + convex hull with >= 10 illuminants, else 'prior' (the camera-"
+                             "independent prior of measured day lights; -night / -day-night presets); 'locus': "
+                             "the A-D65 CCT locus of the calibration matrices (supplement S3)")
     parser.add_argument("--noise-table", type=Path, metavar="CSV",
                         help="noise calibration CSV (iso,cfa_channel_index,beta1_shot,beta2_read; DN incl. black)")
     parser.add_argument("--sensitivities", type=Path, metavar="FILE",

@@ -257,7 +257,7 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
 
     ill = r.get(document, "illuminants", "illuminants")
     kind = r.get(ill, "kind", "illuminants")
-    if kind not in ("gaussian", "mixture", "locus"):
+    if kind not in ("gaussian", "mixture", "locus", "prior"):
         r.fail("illuminants.kind", f"unknown kind {kind!r}")
     weights = r.array(r.get(ill, "weights", "illuminants"), "illuminants.weights", (None,), positive=True)
     k = len(weights)
