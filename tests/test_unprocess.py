@@ -59,15 +59,16 @@ def test_highlight_safe_gains_keep_white_neutral_and_can_be_switched_off():
     profile = pm.load_profile("Canon600D")
     white = jnp.ones((2, 2, 3), jnp.float32)
     neutral = jnp.array([0.5, 1.0, 0.7])
-    args = dict(noise=False, neutral=neutral, quantize=False)
+    args = dict(noise=False, neutral=neutral, quantize=False, exposure_gain=1.0)
     safe, _ = unprocess(jax.random.PRNGKey(0), white, profile, highlight_safe=True, **args)
     plain, _ = unprocess(jax.random.PRNGKey(0), white, profile, highlight_safe=False, **args)
     black = float(profile.black_level[0])
     span = float(profile.white_level) - black
     safe, plain = (np.asarray(safe) - black) / span, (np.asarray(plain) - black) / span
     np.testing.assert_allclose(safe, 1.0, atol=1e-4)            # all channels at the top: neutral in raw
-    np.testing.assert_allclose(plain[0, 0], 0.5, atol=1e-4)     # R = white * r/g
-    np.testing.assert_allclose(plain[1, 1], 0.7, atol=1e-4)     # B = white * b/g
+    red, blue = (divmod(int(np.flatnonzero(np.asarray(profile.cfa_pattern) == c)[0]), 2) for c in (0, 2))
+    np.testing.assert_allclose(plain[red], 0.5, atol=1e-4)      # R = white * r/g
+    np.testing.assert_allclose(plain[blue], 0.7, atol=1e-4)     # B = white * b/g
 
 
 def test_transfers_and_uint8_lookup_agree_with_float_decoding():
