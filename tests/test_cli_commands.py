@@ -154,8 +154,8 @@ def test_same_named_inputs_in_two_folders_are_written_under_their_folders(tmp_pa
                            "-o", str(out), "--quiet"])
     captured = capsys.readouterr()
     assert status == 0, captured.err
-    assert sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file()) == [
-        "manifest.jsonl", "sceneA/0001.dng", "sceneB/0001.dng"]
+    written = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file() and not p.name.startswith("."))
+    assert written == ["manifest.jsonl", "sceneA/0001.dng", "sceneB/0001.dng"]
     records = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()]
     assert sorted(r["output"] for r in records) == ["sceneA/0001.dng", "sceneB/0001.dng"]   # relative
     assert records[0]["neutral"] != records[1]["neutral"]    # own random keys, not one shared by the name
