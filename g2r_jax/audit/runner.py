@@ -32,9 +32,18 @@ SCORE_CAP = 40.0   # |t| or z beyond this is certainty either way (p < 1e-300): 
 def rank(finding):
     """Sort key: significant first; then by score up to SCORE_CAP; among findings beyond it, by
     relevance (magnitude over the cause's tolerance: how many times the smallest difference
-    worth reporting), so that two certain differences are ordered by how much they matter."""
+    worth reporting), so that two certain differences are ordered by how much they matter.
+    The tolerances are set by hand, so relevance is known to a factor of about two: findings in
+    the same factor-2 band (floor of log2) keep the registry order (noise before levels before
+    optics; on the GoPro HERO6 frame noise_model 24.5 and white_level 25.7 share a band)."""
     relevance = finding.get("magnitude", 0.0) / max(finding.get("tolerance", 0.0), 1e-12) if finding.get("tolerance") else 0.0
-    return (not finding["significant"], -min(finding["score"], SCORE_CAP), -relevance, -finding["score"])
+    band = np.floor(np.log2(relevance)) if relevance > 0 else -np.inf
+    name = finding.get("source") or finding["cause"]
+    order = REGISTRY_ORDER.get(name, len(REGISTRY_ORDER))
+    return (not finding["significant"], -min(finding["score"], SCORE_CAP), -band, order, -finding["score"])
+
+
+REGISTRY_ORDER = {cause.name: k for k, cause in enumerate(REGISTRY)}
 
 
 def _cores() -> int:

@@ -11,7 +11,8 @@ import numpy as np
 
 RANKING = ("Findings are ordered by how sure the audit is: significant ones first, then by score (|z| or |t|) "
            "up to {cap:g}; beyond that every difference is certain, and they are ordered by how many times "
-           "they exceed the smallest difference worth reporting for their cause.")
+           "they exceed the smallest difference worth reporting for their cause (within a factor of two, "
+           "noise comes before levels, levels before optics).")
 
 _COLOURS = {0: "red", 1: "green", 2: "blue"}
 
