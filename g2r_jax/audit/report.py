@@ -223,10 +223,12 @@ def _plot_finding(finding, path) -> bool:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 4.2))
-    {"nlf": _nlf_plot, "strip": _strip_plot, "neutrals": _neutral_plot, "patches": _patch_plot}[data["kind"]](ax, data)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    try:
+        {"nlf": _nlf_plot, "strip": _strip_plot, "neutrals": _neutral_plot, "patches": _patch_plot}[data["kind"]](ax, data)
+        fig.tight_layout()
+        atomic_write_bytes(Path(path), lambda handle: fig.savefig(handle, format="png", dpi=90))
+    finally:
+        plt.close(fig)
     return True
 
 

@@ -23,8 +23,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from g2r_jax.io.atomic import atomic_write_bytes
+from g2r_jax.io.atomic import OutputError, atomic_write_bytes
 from g2r_jax.io.dng_info import DngError, DngInfo
+from g2r_jax.io.image_headers import DEFAULT_MAX_PIXELS
+from g2r_jax.io.output_folder import OutputFolder
 from g2r_jax.pipeline import unprocess_batch
 from g2r_jax.sensor.effects import changes_nothing
 
@@ -48,6 +50,8 @@ class ConvertOptions:
     lens_shading: bool = False    # divide by the camera's lens-shading gain map and write its opcode
     compression: str = "none"     # DNG pixels: 'none' or 'ljpeg' (lossless JPEG tiles, `g2r_jax.io.dng_write`)
     progress: bool = True
+    max_pixels: int | None = DEFAULT_MAX_PIXELS        # per image; larger images are refused by name
+    max_batch_pixels: int | None = 2 * DEFAULT_MAX_PIXELS   # per compiled call; fewer images per batch above it
 
 
 @dataclasses.dataclass
@@ -56,6 +60,7 @@ class ConvertResult:
 
     records: list
     errors: list
+    notes: list = dataclasses.field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -116,12 +121,12 @@ def _transfer_for(path: Path, transfer: str) -> str:
     return "linear" if path.suffix.lower() == ".exr" else "srgb"
 
 
-def _load(path: Path, crop_odd: bool):
+def _load(path: Path, crop_odd: bool, max_pixels=DEFAULT_MAX_PIXELS):
     from g2r_jax.io import images
 
-    array = images.read_image_uint8(path)
+    array = images.read_image_uint8(path, max_pixels=max_pixels)
     if array is None:
-        array, _ = images.read_image(path)
+        array, _ = images.read_image(path, max_pixels=max_pixels)
     height, width = array.shape[:2]
     if height % 2 or width % 2:
         if not crop_odd:
@@ -226,8 +231,36 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
     derives from the seed and its name with the input's extension (`0001.png`, `sceneA/0001.png`);
     the manifest names outputs relative to `out_dir`.
 
-    **Returns:** `ConvertResult` (records in input order, error lines).
+    The folder is opened as an `OutputFolder` (locked against a second writer, temporaries of a
+    killed run removed, manifest rebuilt from what is there) and each DNG's record is appended as
+    soon as the file is in place, so that an interrupted run leaves a manifest listing exactly the
+    DNGs written. A fault of the folder itself (disk full, permissions) stops the batch with
+    `OutputError` naming the file. Images above `options.max_pixels` are refused by name.
+
+    **Returns:** `ConvertResult` (records in input order, error lines, notes about the folder).
     """
+    if not write_manifest:
+        return _convert_files(None, inputs, profile, out_dir, neutrals=neutrals, options=options, on_error=on_error,
+                              write_manifest=write_manifest, names=names)
+    with OutputFolder(out_dir) as folder:
+        return _convert_files(folder, inputs, profile, out_dir, neutrals=neutrals, options=options, on_error=on_error,
+                              write_manifest=write_manifest, names=names)
+
+
+def _folder_notes(folder) -> list:
+    """Lines about what an earlier run left in the folder."""
+    notes = []
+    if folder.removed_temporaries:
+        notes.append(f"{folder.path}: removed {folder.removed_temporaries} temporary file(s) left by an interrupted run")
+    if folder.unlisted:
+        shown = ", ".join(folder.unlisted[:3]) + (", ..." if len(folder.unlisted) > 3 else "")
+        notes.append(f"{folder.path}: {len(folder.unlisted)} DNG(s) not listed in its manifest ({shown}): "
+                     "written by another program, or by a run that was killed")
+    return notes
+
+
+def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: ConvertOptions | None = None,
+                  on_error=None, write_manifest: bool = True, names=None) -> ConvertResult:
     from g2r_jax.io.dng_write import COMPRESSIONS, write_dng_bytes
 
     options = options or ConvertOptions()
@@ -268,16 +301,18 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
             opcodes = lens_for(*mosaic.shape)[1] if options.lens_shading else None
             info = dng_info_for(profile, metadata, mosaic.shape[0], mosaic.shape[1], noise=options.noise,
                                 opcode_list2=opcodes)
-            atomic_write_bytes(output, write_dng_bytes(np.asarray(mosaic), info, where=output, compression=options.compression))
+            record = _manifest_record(path, f"{names[index]}.dng", metadata, options.seed)
+            atomic_write_bytes(output, write_dng_bytes(np.asarray(mosaic), info, where=output, compression=options.compression),
+                               after_rename=(lambda: folder.append(record, output)) if folder else None)
         except DngError:
-            raise
+            raise                # OutputError included: the folder failed, not this input
         except Exception as error:  # noqa: BLE001 - name the input whatever went wrong
             raise DngError(path, f"writing {output} failed: {type(error).__name__}: {error}") from error
-        return index, _manifest_record(path, f"{names[index]}.dng", metadata, options.seed)
+        return index, record
 
     with futures.ThreadPoolExecutor(max(1, options.workers)) as pool:
         def submit_load(i):
-            return pool.submit(_load, inputs[i], options.crop_odd)
+            return pool.submit(_load, inputs[i], options.crop_odd, options.max_pixels)
 
         window = max(2 * options.batch_size, options.workers)
         loading = {i: submit_load(i) for i in range(min(window, len(inputs)))}
@@ -304,13 +339,19 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
             shape = bucket_for(image.shape[:2], buckets) if bucketing else image.shape[:2]
             return shape, image.dtype.str, _transfer_for(path, options.transfer)
 
+        def capacity(shape):
+            """Images per compiled call of this shape: the batch size, fewer above the batch pixel budget."""
+            if options.max_batch_pixels is None:
+                return options.batch_size
+            return max(1, min(options.batch_size, options.max_batch_pixels // max(1, shape[0] * shape[1])))
+
         def flush(group):
             batch = pending.pop(group, [])
             if not batch:
                 return
             shape, _, transfer = group
-            count = len(batch)
-            padded = batch + [batch[-1]] * (options.batch_size - count) if count < options.batch_size else batch
+            count, size = len(batch), capacity(shape)
+            padded = batch + [batch[-1]] * (size - count) if count < size else batch
             keys = jnp.stack([file_key(options.seed, names[i] + inputs[i].suffix) for i, _ in padded])
             stacked = np.zeros((len(padded),) + tuple(shape) + padded[0][1].shape[2:], padded[0][1].dtype)
             for j, (_, image) in enumerate(padded):
@@ -349,7 +390,7 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
                 continue
             group = group_of(path, image)
             pending.setdefault(group, []).append((index, image))
-            if len(pending[group]) == options.batch_size:
+            if len(pending[group]) >= capacity(group[0]):
                 flush(group)
             for done in [w for w in writing if w.done()]:
                 writing.remove(done)
@@ -363,9 +404,11 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
     if progress:
         progress.close()
     ordered = [records[i] for i in sorted(records)]
-    if write_manifest and ordered:   # a run that wrote nothing leaves no (empty) manifest
-        write_manifest_file(out_dir, ordered)
-    return ConvertResult(records=ordered, errors=errors)
+    if folder is None:
+        return ConvertResult(records=ordered, errors=errors)
+    rewritten = {folder.key(r) for r in ordered}
+    folder.rewrite([r for r in folder.records if folder.key(r) not in rewritten] + ordered)
+    return ConvertResult(records=ordered, errors=errors, notes=_folder_notes(folder))
 
 
 def write_manifest_file(out_dir, records) -> None:
@@ -378,6 +421,8 @@ def _collect(future, inputs, records, report, progress):
     try:
         index, record = future.result()
         records[index] = record
+    except OutputError:
+        raise                    # the folder itself failed (disk full, permissions): stop the batch
     except Exception as error:  # noqa: BLE001
         report(str(error) if isinstance(error, DngError) else f"{type(error).__name__}: {error}")
     if progress:

@@ -18,16 +18,38 @@ import warnings
 from pathlib import Path
 
 MAX_MESSAGE = 300
+MAX_SHOWN = 160           # characters of a path or of a value read from a file, in one message
 _PACKAGE_DIR = str(Path(__file__).resolve().parents[1])
 # Text that betrays a message from the numerical libraries rather than from g2r_jax.
 _LIBRARY_MARKERS = ("equinox", "optimistix", "lineax", "xlaruntimeerror", "jaxlib", "jax._src", "cpucallback",
                     "callback error", "traceback", "filter_jit", "nonlinear solver")
 
 
+def shown(value, limit: int = MAX_SHOWN) -> str:
+    """`value` (a path, a file name, text read from a file) as safe text inside one line.
+
+    Every character that is not printable (newline, tab, ESC and the other control characters,
+    undecodable bytes of a file name) is shown as a Python escape (`\\n`, `\\x1b`, `\\udcff`),
+    never sent to the terminal; the result is cut to `limit` characters, ending in '...'.
+    """
+    text = str(value)
+    escaped = "".join(char if char.isprintable() else _escape(char) for char in text[:limit])
+    if len(text) > limit or len(escaped) > limit:
+        escaped = escaped[: max(0, limit - 3)] + "..."
+    return escaped
+
+
+def _escape(char: str) -> str:
+    code = ord(char)
+    if char in "\n\r\t":
+        return repr(char)[1:-1]
+    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}"
+
+
 def one_line(message, limit: int = MAX_MESSAGE) -> str:
-    """`message` as one short line: whitespace collapsed, at most `limit` characters."""
-    text = " ".join(str(message).split())
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+    """`message` as one short, safe line: whitespace runs collapsed to one space, any other
+    control character shown as an escape (`shown`), at most `limit` characters."""
+    return shown(" ".join(str(message)[: 4 * limit].split()), limit)
 
 
 def is_library_text(message) -> bool:
@@ -43,9 +65,9 @@ def error_message(error: BaseException) -> str:
 
     if isinstance(error, DngError):
         if is_library_text(error.problem):
-            return one_line(f"{error.path}: numerical failure while using this file's values "
+            return one_line(f"{shown(error.path)}: numerical failure while using this file's values "
                             f"({type(error.__cause__ or error).__name__}; --debug shows details)")
-        return one_line(error)
+        return one_line(f"{shown(error.path)}: {error.problem}")
     if is_library_text(error) or type(error).__module__.split(".")[0] in ("jax", "jaxlib", "equinox", "optimistix",
                                                                          "lineax"):
         return f"numerical failure ({type(error).__name__}; --debug shows details)"
@@ -111,6 +133,9 @@ def run_command(name: str, body, argv, parser, check=None) -> int:
     if problem:   # a value, not the syntax: one line, like every other error of ours
         print(f"{name}: error: {one_line(problem)}", file=sys.stderr)
         return 2
+    from g2r_jax.cli.interruption import StopOnSignal
+
+    stop = StopOnSignal(name).install()     # from here on (JAX imports included) a signal stops cleanly
     from g2r_jax.runtime.deterministic import request_deterministic_gpu_ops
 
     request_deterministic_gpu_ops()
@@ -119,7 +144,7 @@ def run_command(name: str, body, argv, parser, check=None) -> int:
 
         enable(program=name)
     debug = bool(getattr(args, "debug", False))
-    with quiet_libraries(name, debug):
+    with stop, quiet_libraries(name, debug):
         try:
             return int(body(args) or 0)
         except KeyboardInterrupt:

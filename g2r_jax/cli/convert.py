@@ -8,6 +8,7 @@ from pathlib import Path
 
 from g2r_jax.cli.common import (
     add_common_flags, command_parser, output_folder_problem, required_group, run_command)
+from g2r_jax.cli.common import error_message, one_line
 
 DEFAULT_EXAMPLE_PROFILE = "Canon600D"
 USAGE = """g2r-convert INPUT [INPUT ...] --profile NAME|FILE -o OUT_DIR [options]
@@ -70,6 +71,11 @@ def build_parser() -> argparse.ArgumentParser:
                              "LibRaw and the Adobe DNG SDK): 0.4-0.65 of the size for about 0.3 s more CPU "
                              "a 12-MP frame")
     parser.add_argument("--crop-odd", action="store_true", help="drop the last row/column of odd-sized images")
+    parser.add_argument("--max-megapixels", type=float, default=100.0, metavar="MPX",
+                        help="largest image accepted, read from its header before decoding; larger ones are "
+                             "refused by name (0: no limit)")
+    parser.add_argument("--max-batch-megapixels", type=float, default=200.0, metavar="MPX",
+                        help="pixels of one compiled call: fewer images go together above it (0: no limit)")
     parser.add_argument("--lens-shading", action="store_true",
                         help="apply the inverse of the camera's lens shading (profile OpcodeList2) and write the opcode")
     parser.add_argument("--engine", choices=["local", "ray"], default="local",
@@ -159,7 +165,7 @@ def body(args) -> int:
         try:
             files += list_inputs([item], IMAGE_EXTENSIONS)
         except Exception as error:  # noqa: BLE001 - report and go on with the other inputs
-            errors.append(str(error))
+            errors.append(error_message(error))
     files = sorted(set(files), key=lambda p: (p.name, str(p)))
     neutrals = None
     if args.illuminants:
@@ -170,16 +176,20 @@ def body(args) -> int:
                              transfer=args.transfer, recipe=args.recipe, colour=args.colour, batch_size=max(1, args.batch_size),
                              workers=max(1, args.workers), crop_odd=args.crop_odd, lens_shading=args.lens_shading,
                              compression=args.compression,
+                             max_pixels=int(args.max_megapixels * 1e6) if args.max_megapixels > 0 else None,
+                             max_batch_pixels=int(args.max_batch_megapixels * 1e6) if args.max_batch_megapixels > 0 else None,
                              progress=not args.quiet and sys.stderr.isatty())
     for line in errors:
-        print(f"g2r-convert: error: {line}", file=sys.stderr)
-    report = lambda line: print(f"g2r-convert: error: {line}", file=sys.stderr)
+        print(f"g2r-convert: error: {one_line(line)}", file=sys.stderr)
+    report = lambda line: print(f"g2r-convert: error: {one_line(line)}", file=sys.stderr)
     if args.engine == "ray":
         from g2r_jax.batch.distributed import convert_files_ray
         result = convert_files_ray(files, profile_name, args.output, neutrals=neutrals, options=options, on_error=report)
     else:
         result = convert_files(files, profile, args.output, neutrals=neutrals, options=options, on_error=report)
     failed = len(errors) + len(result.errors)
+    for note in result.notes:
+        say(f"note: {one_line(note)}")
     manifest = args.output / "manifest.jsonl"
     print(f"g2r-convert: {len(result.records)} DNG(s) written to {args.output} with profile "
           f"{profile.info.name!r}; {failed} failed; manifest: {manifest if result.records else 'none (nothing written)'}")
