@@ -77,6 +77,8 @@ PARSING_ERRORS = [
     ("g2r-diagnose", ["--profile", "gopro_hero6", "--measured", "a_folder", "--report", "r.json", "--folds", "1"],
      "--folds"),
     ("g2r-diagnose", ["--profile", "gopro_hero6", "--report", "r.json"], "--measured"),
+    ("g2r-diagnose", ["--profile", "gopro_hero6", "--measured", "a_folder", "--scenes", "nowhere", "--report", "r.json"],
+     "--scenes nowhere: no such folder"),
     ("g2r-diagnose", ["--profile", "gopro_hero6", "--measured", "a_folder", "--report", "a_folder"], "is a folder"),
     ("g2r-diagnose", ["--profile", "gopro_hero6", "--measured", "a_folder", "--report", "a_file/r.json"],
      "a_file is a file"),

@@ -61,6 +61,8 @@ def check_arguments(args) -> str | None:
         return f"--charts {args.charts}: no such file"
     if args.measured is not None and not Path(args.measured).exists():
         return f"--measured {args.measured}: no such folder"
+    if args.scenes is not None and not Path(args.scenes).exists():
+        return f"--scenes {args.scenes}: no such folder"
     try:
         profile_path(args.profile)
     except UnknownProfile as error:
