@@ -59,7 +59,7 @@ def test_fit_profile_bad_sensitivity_file_is_one_line(tmp_path, capsys):
                               "--sensitivities", str(tmp_path / "bad.csv"), "-o", str(tmp_path / "p.json")])
     assert status == 2
     errors = [line for line in capsys.readouterr().err.strip().splitlines() if "error:" in line]
-    assert len(errors) == 1 and "bad.csv: a row is not four numbers" in errors[0]
+    assert len(errors) == 1 and "bad.csv: line 2: not four numbers" in errors[0]
     assert not (tmp_path / "p.json").exists()
 
 

@@ -70,27 +70,10 @@ def check_arguments(args) -> str | None:
 def read_noise_table(path: Path, black_level, white_level):
     """NoiseModel from a calibration CSV like ../shared/data/noise/ (errors name the file), its read
     term less the rounding variance (`sensor.noise.quantisation`)."""
-    import csv
-
-    import numpy as np
-
-    from g2r_jax.io.dng_info import DngError
     from g2r_jax.profile.schema import noise_from_table
+    from g2r_jax.io.noise_table import read_noise_table_rows
 
-    try:
-        with open(path, newline="") as handle:
-            rows = list(csv.DictReader(handle))
-        table = {}
-        for row in rows:
-            table.setdefault(float(row["iso"]), {})[int(row["cfa_channel_index"])] = (
-                float(row["beta1_shot"]), float(row["beta2_read"]))
-    except (OSError, KeyError, ValueError, TypeError) as error:
-        raise DngError(path, f"not a noise table with columns iso,cfa_channel_index,beta1_shot,beta2_read ({error})") from None
-    isos = sorted(table)
-    if not isos or any(sorted(table[i]) != [0, 1, 2, 3] for i in isos):
-        raise DngError(path, "every ISO needs the four CFA positions 0..3")
-    beta1 = np.array([[table[i][p][0] for p in range(4)] for i in isos])
-    beta2 = np.array([[table[i][p][1] for p in range(4)] for i in isos])
+    isos, beta1, beta2 = read_noise_table_rows(path, black_level, white_level)   # checked row by row
     from g2r_jax.sensor.noise.quantisation import without_quantisation
 
     # a calibration of integer raws (photon transfer): its read term holds the rounding, which the simulation adds

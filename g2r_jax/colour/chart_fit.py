@@ -129,6 +129,8 @@ def summarise(errors) -> dict:
     the per-patch median, of an (N, 24) error table (NaN ignored)."""
     chromatic = errors[:, _charts.CHROMATIC]
     chromatic = chromatic[np.isfinite(chromatic)]
+    if not chromatic.size:
+        raise ValueError("no chromatic patch (1..18) has both a measured and a predicted value: nothing to compare")
     neutral = errors[:, _charts.NEUTRAL]
     return {"chromatic_mean": float(np.mean(chromatic)), "chromatic_median": float(np.median(chromatic)),
             "chromatic_p95": float(np.percentile(chromatic, 95)),

@@ -18,8 +18,9 @@
 - `fold` (optional): the image's cross-validation fold (integer >= 0), as in a dataset's standard
   split (Gehler-Shi: 3 folds). Without it, folds are drawn by `assign_folds`.
 
-Every image must have an `illuminant` row with finite, positive values. Missing patch rows are
-NaN. A bad file raises `ChartError` with one line naming the file and row.
+Every image must have an `illuminant` row with finite, positive values whose r/g and b/g lie in
+[1e-6, 1e6]. Missing patch rows are NaN; at least one image needs a measured chromatic patch
+(1..18). A bad file raises `ChartError` with one line naming the file and row.
 
 The chart's colours: the 24 spectral reflectances of colour-science's "ColorChecker N Ohta"
 (Ohta's measurements as distributed with colour-science) integrated under CIE D65 with the CIE
@@ -43,6 +44,7 @@ import numpy as np
 N_PATCHES = 24
 CHROMATIC = np.arange(18)          # patches 1-18 (0-based 0..17)
 NEUTRAL = np.arange(18, 24)        # patches 19-24: white ... black
+MIN_RATIO = 1e-6                    # an illuminant's r/g and b/g beyond [1e-6, 1e6] is not a light
 ILLUMINANT = "illuminant"
 PATCH_NAMES = (
     "dark skin", "light skin", "blue sky", "foliage", "blue flower", "bluish green",
@@ -131,6 +133,9 @@ def read_charts(path) -> ChartSet:
                 raise ChartError(f"{where}: second illuminant row for image {image!r}")
             if not all(math.isfinite(v) and v > 0 for v in rgb):
                 raise ChartError(f"{where}: the illuminant of image {image!r} must be finite and positive, got {rgb}")
+            if not all(MIN_RATIO <= v / rgb[1] <= 1 / MIN_RATIO for v in rgb):
+                raise ChartError(f"{where}: the illuminant of image {image!r} is degenerate (r/g and b/g must lie "
+                                 f"in [{MIN_RATIO:g}, {1 / MIN_RATIO:g}]), got {rgb}")
             illuminants[index] = rgb
             continue
         try:
@@ -152,6 +157,9 @@ def read_charts(path) -> ChartSet:
     values = np.full((len(names), N_PATCHES, 3), np.nan)
     for (index, number), rgb in patches.items():
         values[index, number - 1] = rgb
+    if not np.isfinite(values[:, CHROMATIC]).all(-1).any():
+        raise ChartError(f"{path}: no image has a measured chromatic patch (1..18, all nan or missing): "
+                         "nothing to compare")
     return ChartSet(names, values, np.array([illuminants[i] for i in range(len(names))], float),
                     np.array([folds[i] for i in range(len(names))]) if has_fold else None, str(path))
 

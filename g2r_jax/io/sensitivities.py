@@ -33,6 +33,9 @@ class Sensitivities:
     source: str
 
 
+MAX_VALUE = 1e12          # relative or absolute sensitivities stay far below; beyond, resampling overflows
+
+
 def normalise(values) -> np.ndarray:
     values = np.clip(np.asarray(values, np.float64), 0.0, None)
     return values / values[:, 1].max()
@@ -43,8 +46,11 @@ def _check(path, wavelengths, values) -> tuple[np.ndarray, np.ndarray]:
     values = np.asarray(values, np.float64)
     if values.ndim != 2 or values.shape[1] != 3 or len(wavelengths) != len(values) or len(values) < 4:
         raise DngError(path, "expected at least 4 wavelengths with three values (r, g, b) each")
-    if not np.all(np.isfinite(values)) or not np.all(np.isfinite(wavelengths)):
-        raise DngError(path, "contains NaN or infinity")
+    finite = np.isfinite(values).all(1) & np.isfinite(wavelengths)
+    if not finite.all():
+        raise DngError(path, f"the row at {wavelengths[~finite][0]:g} nm holds NaN or infinity")
+    if np.abs(values).max() > MAX_VALUE:
+        raise DngError(path, f"values beyond {MAX_VALUE:g}: not a sensitivity curve (largest {np.abs(values).max():.3g})")
     if np.any(np.diff(wavelengths) <= 0):
         raise DngError(path, "wavelengths must be strictly ascending")
     if wavelengths[0] > 420 or wavelengths[-1] < 680:
@@ -61,16 +67,52 @@ def _on_grid(path, wavelengths, values) -> np.ndarray:
     return normalise(resample(wavelengths, values))
 
 
+def _field(path, document, *keys) -> dict:
+    """The object at `keys` in a JSON document; `DngError` naming the first missing or wrong field."""
+    value = document
+    for depth, key in enumerate(keys):
+        if not isinstance(value, dict) or key not in value:
+            where = ".".join(keys[:depth]) or "the top level"
+            raise DngError(path, f"not a rawtoaces camera JSON: {where} has no object field '{key}'")
+        value = value[key]
+    if not isinstance(value, dict):
+        raise DngError(path, f"field {'.'.join(keys)} must be an object")
+    return value
+
+
+def _short_text(value, limit: int = 40) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def read_rawtoaces_json(path) -> Sensitivities:
     path = Path(path)
     try:
         document = json.loads(path.read_text())
-        table = document["spectral_data"]["data"]["main"]
-        header = document.get("header", {})
-        rows = sorted((float(k), v) for k, v in table.items())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
-        raise DngError(path, f"not a rawtoaces camera JSON ({type(error).__name__}: {error})") from None
-    camera = f"{header.get('manufacturer', '')} {header.get('model', '')}".strip() or path.stem
+    except (OSError, UnicodeDecodeError) as error:
+        raise DngError(path, f"cannot read ({type(error).__name__})") from None
+    except (json.JSONDecodeError, RecursionError) as error:
+        where = f"line {error.lineno}, column {error.colno}: {error.msg}" if isinstance(error, json.JSONDecodeError) \
+            else "nested too deeply"
+        raise DngError(path, f"not valid JSON ({where})") from None
+    table = _field(path, document, "spectral_data", "data", "main")
+    header = document.get("header", {})
+    if not isinstance(header, dict):
+        raise DngError(path, "field header must be an object")
+    rows = []
+    for key, value in table.items():
+        try:
+            wavelength = float(key)
+        except ValueError:
+            raise DngError(path, f"spectral_data.data.main: key {_short_text(key)} is not a wavelength in nm") from None
+        if not (isinstance(value, list) and len(value) == 3
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
+            raise DngError(path, f"spectral_data.data.main[{_short_text(key)}]: expected three numbers (r, g, b), "
+                                 f"got {_short_text(value)}")
+        rows.append((wavelength, value))
+    rows.sort(key=lambda row: row[0])
+    names = [header.get(field, "") for field in ("manufacturer", "model")]
+    camera = " ".join(str(n) for n in names if isinstance(n, str) and n).strip()[:80] or path.stem
     values = _on_grid(path, [w for w, _ in rows], [v for _, v in rows])
     return Sensitivities(camera, values, f"rawtoaces JSON {path.name}")
 
@@ -118,11 +160,15 @@ def read_csv(path) -> Sensitivities:
             rows = list(csv.DictReader(handle))
         if not rows or not {"wavelength", "r", "g", "b"} <= set(rows[0]):
             raise DngError(path, "expected a header with columns wavelength,r,g,b")
-        table = np.array([[float(r["wavelength"]), float(r["r"]), float(r["g"]), float(r["b"])] for r in rows])
+        table = []
+        for line, row in enumerate(rows, start=2):
+            try:
+                table.append([float(row[column]) for column in ("wavelength", "r", "g", "b")])
+            except (TypeError, ValueError):
+                raise DngError(path, f"line {line}: not four numbers (wavelength, r, g, b)") from None
+        table = np.array(table)
     except (OSError, UnicodeDecodeError) as error:
-        raise DngError(path, f"cannot read sensitivity CSV ({error})") from None
-    except (TypeError, ValueError):
-        raise DngError(path, "a row is not four numbers") from None
+        raise DngError(path, f"cannot read sensitivity CSV ({type(error).__name__})") from None
     return Sensitivities(path.stem, _on_grid(path, table[:, 0], table[:, 1:]), f"CSV {path.name}")
 
 
@@ -136,7 +182,7 @@ def read_sensitivities(path, camera: str | None = None) -> Sensitivities:
         raise DngError(path, "no such file") from None
     except (OSError, UnicodeDecodeError) as error:
         raise DngError(path, f"cannot read ({error})") from None
-    if head.startswith("{"):
+    if head[:1] in ('{', '[', '"'):
         return read_rawtoaces_json(path)
     if head.lower().startswith("wavelength"):
         return read_csv(path)
