@@ -5,7 +5,9 @@ file has two good files of its camera beside it), the DNGs in ../shared/data/dng
 small PNG/JPEG/TIFF/EXR images, and the shipped profiles' JSON.
 
 Mutations (`mutate_dng`): bit flips, truncation, overwritten bytes at random places and in tag
-fields (entry counts, types, offsets, values) within the first 8 KB. Images (`mutate_image`): the
+fields (entry counts, types, offsets, values) within the first 8 KB, or anywhere in the file
+(campaign 'fit-deep'). Side inputs, charts, hostile names and lying image headers are attacked at
+their readers by tests/input_attacks.py; faults of the output folder by tests/fault_harness.py. Images (`mutate_image`): the
 same, plus headers claiming enormous sizes. Profiles (`mutate_profile`): a numeric leaf replaced by
 an extreme, non-finite or wrongly typed value, a key deleted, or a byte-level flip of the JSON.
 
@@ -131,10 +133,11 @@ def _tag_fields(data: bytes) -> list:
     return fields
 
 
-def mutate_dng(data: bytes, rng: random.Random, fields=None) -> tuple[bytes, str]:
-    """One mutation of a DNG (bytes, description)."""
+def mutate_dng(data: bytes, rng: random.Random, fields=None, deep: bool = False) -> tuple[bytes, str]:
+    """One mutation of a DNG (bytes, description); `deep`: anywhere in the file (image data,
+    tiles, later IFDs), not only in its first `HEAD` bytes."""
     data = bytearray(data)
-    head = min(HEAD, len(data))
+    head = len(data) if deep else min(HEAD, len(data))
     kind = rng.choice(("flip", "flip", "truncate", "overwrite", "field", "field", "field"))
     if kind == "flip":
         for _ in range(rng.randint(1, 8)):
@@ -450,13 +453,13 @@ def generate_cases(kind: str, n: int, seed: int, seeds: dict):
     rng = random.Random(seed)
     fields = {}
     for case in range(n):
-        if kind in ("fit", "diagnose"):
+        if kind in ("fit", "fit-deep", "diagnose"):
             choices = seeds["dng"] if kind == "fit" else seeds["measured"]   # the audit needs 3+ good files
             seed_path, partners = rng.choice(choices)
             original = seed_path.read_bytes()
             if seed_path not in fields:
                 fields[seed_path] = _tag_fields(original)
-            data, how = mutate_dng(original, rng, fields[seed_path])
+            data, how = mutate_dng(original, rng, fields[seed_path], deep=kind == "fit-deep")
             yield {"case": case, "kind": kind, "partners": partners, "data": data, "suffix": ".dng",
                    "label": f"{seed_path.name}: {how}", "payload": data}
         else:
@@ -476,7 +479,7 @@ def generate_cases(kind: str, n: int, seed: int, seeds: dict):
 
 def run_case(spec: dict, work: Path) -> list:
     """Run one generated (or corpus) case in the empty folder `work`; the broken promises."""
-    if spec["kind"] == "fit":
+    if spec["kind"] in ("fit", "fit-deep"):
         return fit_case(work, None, spec["partners"], spec["data"])
     if spec["kind"] == "diagnose":
         return diagnose_case(work, spec["partners"], spec["data"])
@@ -486,7 +489,7 @@ def run_case(spec: dict, work: Path) -> list:
 
 def campaign(kind: str, n: int, seed: int = 0, *, seeds_dir: Path | None = None, save_findings: bool = False,
              profiles=SEED_PROFILES, log=print) -> dict:
-    """Run `n` cases of `kind` ('fit', 'convert' or 'diagnose'); returns counts and findings."""
+    """Run `n` cases of `kind` ('fit', 'fit-deep', 'convert' or 'diagnose'); returns counts and findings."""
     base = Path(tempfile.mkdtemp(prefix="g2r_fuzz_"))
     seeds = make_seeds(seeds_dir or base / "seeds", profiles)
     findings = []

@@ -115,6 +115,21 @@ def test_a_jpeg_claiming_a_huge_frame_never_shows_pillows_words(tmp_path):
     assert "over the budget" in str(caught.value) and "ecompression" not in str(caught.value)
 
 
+def test_a_jpeg_too_small_for_its_frame_is_refused_as_truncated(tmp_path):
+    path = tmp_path / "liar.jpg"
+    Image.fromarray(np.zeros((16, 24, 3), np.uint8)).save(path)
+    data = bytearray(path.read_bytes())
+    sof = data.index(b"\xff\xc0")
+    data[sof + 5: sof + 9] = struct.pack(">HH", 8000, 8000)
+    path.write_bytes(bytes(data))
+    with pytest.raises(DngError, match=r"liar\.jpg: truncated: a 8000x8000 JPEG needs at least \d+ bytes"):
+        read_image(path)
+    Image.fromarray(np.random.default_rng(0).integers(0, 255, (480, 640, 3), dtype=np.uint8)).save(path, quality=5)
+    assert read_image(path)[0].shape == (480, 640, 3)
+    Image.fromarray(np.zeros((480, 640, 3), np.uint8)).save(path, quality=5, progressive=True, subsampling=2)
+    assert read_image(path)[0].shape == (480, 640, 3)     # flat, progressive, 4:2:0: smallest real files pass
+
+
 def test_a_truncated_uncompressed_tiff_is_refused(tmp_path):
     Image.fromarray(np.zeros((64, 64, 3), np.uint8)).save(tmp_path / "a.tif")
     data = (tmp_path / "a.tif").read_bytes()

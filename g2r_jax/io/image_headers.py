@@ -5,7 +5,8 @@ A header can claim any size: a 312-byte PNG may declare 8000x8000 pixels and car
 Decoders allocate for the claim and fill the missing rows with zeros, silently. Here the claim is
 read without decoding (`claimed_size`), refused above the budget (`check_pixel_budget`), and a
 PNG's zlib stream is inflated in small pieces, counting bytes without keeping them
-(`check_png_complete`), so memory stays bounded by the file's real data, not by its claim.
+(`check_png_complete`), so memory stays bounded by the file's real data, not by its claim; a
+JPEG must at least be large enough to code one bit per 8x8 block (`check_jpeg_complete`).
 Formats: PNG (ISO/IEC 15948, IHDR and IDAT chunks), JPEG (ITU T.81 B.2.2, the SOF segment),
 TIFF (through tifffile's page shape), OpenEXR (the dataWindow of the header).
 """
@@ -18,13 +19,15 @@ from pathlib import Path
 
 from g2r_jax.io.dng_info import DngError
 
-__all__ = ["DEFAULT_MAX_PIXELS", "PNG_SIGNATURE", "claimed_size", "check_pixel_budget", "check_png_complete"]
+__all__ = ["DEFAULT_MAX_PIXELS", "PNG_SIGNATURE", "claimed_size", "check_pixel_budget", "check_png_complete",
+           "check_jpeg_complete"]
 
 DEFAULT_MAX_PIXELS = 100_000_000      # 100 megapixels per image: 1.2 GB as float32 RGB
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _PNG_CHANNELS = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}      # colour type -> samples per pixel
 _ADAM7 = ((0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2), (0, 1, 1, 2))
 _JPEG_SOF = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
+_JPEG_HUFFMAN = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7}
 _PIECE = 1 << 20                      # bytes read and inflated at a time
 
 
@@ -40,7 +43,8 @@ def _png_header(path: Path, handle) -> tuple:
 
 
 def _jpeg_size(path: Path, handle) -> tuple:
-    """(width, height) from the first SOF segment (T.81 B.2.2); DngError when none is found."""
+    """(width, height, SOF marker, [(H, V) per component]) from the first SOF segment (T.81
+    B.2.2); DngError when none is found."""
     if handle.read(2) != b"\xff\xd8":
         raise DngError(path, "not a JPEG (no start-of-image marker)")
     while True:
@@ -56,11 +60,12 @@ def _jpeg_size(path: Path, handle) -> tuple:
             raise DngError(path, "JPEG is truncated or damaged before its frame header")
         size = struct.unpack(">H", length)[0] - 2
         if marker[1] in _JPEG_SOF:
-            frame = handle.read(5)
-            if len(frame) < 5:
+            frame = handle.read(size)
+            if len(frame) < 6 or len(frame) < 6 + 3 * frame[5]:
                 raise DngError(path, "JPEG frame header is truncated")
             height, width = struct.unpack(">HH", frame[1:5])
-            return width, height
+            sampling = [(frame[7 + 3 * c] >> 4, frame[7 + 3 * c] & 15) for c in range(frame[5])]
+            return width, height, marker[1], sampling
         handle.seek(size, 1)
 
 
@@ -79,8 +84,42 @@ def claimed_size(path) -> tuple | None:
         if suffix == ".png":
             return _png_header(path, handle)[:2]
         if suffix in (".jpg", ".jpeg"):
-            return _jpeg_size(path, handle)
+            return _jpeg_size(path, handle)[:2]
     return None
+
+
+def _jpeg_minimum_bytes(width: int, height: int, sampling) -> int:
+    """A lower bound of a Huffman-coded JPEG's size: every 8x8 block of every component codes at
+    least its DC difference, one bit at the least (T.81 F.1.2.1; progressive: G.1.2.1)."""
+    h_max = max(max(h for h, _ in sampling), 1)
+    v_max = max(max(v for _, v in sampling), 1)
+    blocks = 0
+    for h, v in sampling:
+        columns = -(-width * max(h, 1) // h_max)
+        rows = -(-height * max(v, 1) // v_max)
+        blocks += -(-columns // 8) * -(-rows // 8)
+    return blocks // 8
+
+
+def check_jpeg_complete(path, max_pixels: int | None = DEFAULT_MAX_PIXELS) -> tuple:
+    """Refuse a JPEG larger than the budget, or too small a file to hold the frame its header
+    claims (decoders fill the missing blocks with grey, silently).
+
+    **Arguments:** `path`: a JPEG file; `max_pixels`: the budget (None: none).
+
+    **Returns:** (width, height). Raises `DngError` naming the file. Arithmetic-coded JPEGs, which
+    may spend less than a bit on a block, are only checked against the budget.
+    """
+    path = Path(path)
+    with open(path, "rb") as handle:
+        width, height, marker, sampling = _jpeg_size(path, handle)
+    check_pixel_budget(path, width, height, max_pixels)
+    if marker in _JPEG_HUFFMAN:
+        needed, size = _jpeg_minimum_bytes(width, height, sampling), path.stat().st_size
+        if size < needed:
+            raise DngError(path, f"truncated: a {width}x{height} JPEG needs at least {needed} bytes of image data, "
+                                 f"the file has {size}")
+    return width, height
 
 
 def check_pixel_budget(path, width: int, height: int, max_pixels: int | None) -> None:

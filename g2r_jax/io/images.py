@@ -28,7 +28,7 @@ import numpy as np
 
 from g2r_jax.io.dng_info import DngError
 from g2r_jax.io.image_headers import (DEFAULT_MAX_PIXELS, PNG_SIGNATURE, check_pixel_budget, check_png_complete,
-                                      claimed_size)
+                                      check_jpeg_complete)
 
 __all__ = ["read_image", "read_image_uint8", "list_inputs", "DEFAULT_MAX_PIXELS",
            "SRGB_EXTENSIONS", "EXR_EXTENSIONS", "IMAGE_EXTENSIONS"]
@@ -269,7 +269,7 @@ def _read_integer(path: Path, ext: str, max_pixels=DEFAULT_MAX_PIXELS) -> tuple:
         if _signature(path) == PNG_SIGNATURE:
             check_png_complete(path, max_pixels)
         elif ext in (".jpg", ".jpeg"):
-            check_pixel_budget(path, *claimed_size(path), max_pixels)
+            check_jpeg_complete(path, max_pixels)
         return _read_pillow(path, max_pixels)
     except DngError:
         raise

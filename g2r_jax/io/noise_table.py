@@ -79,8 +79,9 @@ def read_noise_table_rows(path, black_level, white_level) -> tuple:
     beta2 = np.array([[table[i][p][1] for p in range(4)] for i in isos])
     black = np.resize(np.asarray(black_level, np.float64), 4)
     span = float(white_level) - black
-    shot = beta1 / span
-    read = (beta1 * black + beta2) / span**2
+    with np.errstate(over="ignore", invalid="ignore"):      # huge values become inf and are refused below
+        shot = beta1 / span
+        read = (beta1 * black + beta2) / span**2
     for name, values, low_open in (("beta1_shot", shot, True), ("beta2_read", read, False)):
         bad = (values <= 0) if low_open else (values < 0)
         bad |= values > 1
