@@ -50,3 +50,52 @@ def test_the_harness_sees_a_broken_folder(tmp_path):
     for expected in ("temporaries left", "incomplete files: ['b.dng']", "missing files: ['gone.dng']",
                      "not in the manifest"):
         assert expected in problems
+
+
+def _mount_small_tmpfs(folder: Path) -> bool:
+    """A 2 MB tmpfs at `folder` when this process may mount one (root in a container), else False."""
+    if not hasattr(os, "geteuid") or os.geteuid() != 0:
+        return False
+    folder.mkdir()
+    return subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(folder)], capture_output=True).returncode == 0
+
+
+@pytest.mark.slow
+def test_convert_on_a_full_disk_names_the_file_and_keeps_the_manifest_exact(tmp_path, monkeypatch, capsys):
+    import numpy as np
+    from PIL import Image
+
+    from g2r_jax.cli.convert import main as convert_main
+    from g2r_jax.io import atomic
+
+    images = tmp_path / "in"
+    images.mkdir()
+    rng = np.random.default_rng(0)
+    for index in range(24):
+        Image.fromarray(rng.integers(0, 255, (256, 384, 3), dtype=np.uint8)).save(images / f"img{index:03d}.png")
+    disk = tmp_path / "disk"
+    mounted = _mount_small_tmpfs(disk)
+    if not mounted:          # a write failing with ENOSPC after a few files instead
+        calls, fsync = {"n": 0}, os.fsync
+
+        def full(descriptor):
+            calls["n"] += 1
+            if calls["n"] > 6:
+                raise OSError(28, "No space left on device")
+            return fsync(descriptor)
+
+        monkeypatch.setattr(atomic.os, "fsync", full)
+    try:
+        status = convert_main([str(images), "--profile", "NikonD40", "-o", str(disk / "out"), "-q"])
+        err = capsys.readouterr().err
+        out = disk / "out"
+        dngs = sorted(p.name for p in out.glob("*.dng"))
+        listed = sorted(Path(json.loads(line)["output"]).name
+                        for line in (out / "manifest.jsonl").read_text().splitlines()) if dngs else []
+        leftovers = [p.name for p in out.iterdir() if p.name.endswith(".tmp")]
+    finally:
+        if mounted:
+            subprocess.run(["umount", str(disk)], capture_output=True)
+    assert status == 2
+    assert "cannot write: no space left on the disk" in err and ".tmp" not in err and "Errno" not in err
+    assert 0 < len(dngs) < 24 and listed == dngs and leftovers == []
