@@ -18,8 +18,13 @@ interpreter (no JAX), and checks the folder afterwards:
 - read-only / vanished folder: creating the temporary fails (EROFS, EACCES) or the folder is
   removed; the error names the file in our words.
 
+- command-signal: g2r-convert itself, stopped after a random delay (start-up, compilation with or
+  without the compilation cache, writing): exit 130 (0 only with every file written), no
+  traceback, the manifest lists exactly the DNGs, each readable.
+
 Run `python tests/fault_harness.py KIND N [SEED]` (KIND: kill, signal, concurrent, disk-full,
-read-only, all); it prints one JSON line {kind, cases, seed, findings}.
+read-only, all of these, or command-signal: seconds per case); it prints one JSON line
+{kind, cases, seed, findings}.
 """
 
 from __future__ import annotations
@@ -244,8 +249,61 @@ def read_only_case(rng: random.Random, folder: Path) -> list:
     return problems
 
 
+def command_signal_case(rng: random.Random, folder: Path) -> list:
+    """g2r-convert itself (a subprocess, JAX included) stopped by SIGINT or SIGTERM after a random
+    delay: during start-up, compilation (half the cases without the compilation cache) or writing."""
+    import subprocess
+
+    images = folder.parent / "frames"
+    if not images.is_dir():
+        import numpy as np
+        from PIL import Image
+
+        images.mkdir(parents=True)
+        pixels = np.random.default_rng(0)
+        for index in range(16):
+            Image.fromarray(pixels.integers(0, 255, (96, 128, 3), dtype=np.uint8)).save(images / f"f{index:02d}.png")
+    number = rng.choice([signal.SIGINT, signal.SIGTERM])
+    argv = [sys.executable, "-m", "g2r_jax.cli.convert", str(images), "--profile", "NikonD40", "-o", str(folder),
+            "--batch-size", "2"] + (["--no-compile-cache"] if rng.random() < 0.5 else [])
+    process = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    time.sleep(rng.uniform(0.2, 12.0))
+    process.send_signal(number)
+    _, stderr = process.communicate(timeout=600)
+    problems = []
+    if process.returncode not in (0, 130):
+        problems.append(f"exit status {process.returncode}: {stderr.strip()[-200:]}")
+    if "Traceback" in stderr or "KeyboardInterrupt" in stderr or "Exception ignored" in stderr:
+        problems.append(f"foreign text: {stderr.strip()[-200:]}")
+    if process.returncode == 0 and len(list(folder.glob("*.dng"))) != 16:
+        problems.append("exit 0 without every file: the signal was swallowed")
+    folder.mkdir(parents=True, exist_ok=True)
+    return problems + [p for p in folder_problems_dng(folder) if p]
+
+
+def folder_problems_dng(folder: Path) -> list:
+    """`folder_problems` for real DNGs (complete = readable by our reader, not the test payload)."""
+    from g2r_jax.io.dng_read import read_dng_info
+
+    problems = []
+    names = sorted(p.name for p in folder.iterdir())
+    if [n for n in names if atomic.is_temporary_name(n)]:
+        problems.append("temporaries left")
+    dngs = [n for n in names if n.endswith(".dng")]
+    listed = [Path(json.loads(line)["output"]).name for line in (folder / MANIFEST_NAME).read_text().splitlines()] \
+        if MANIFEST_NAME in names else []
+    if sorted(listed) != dngs:
+        problems.append(f"manifest lists {len(listed)} files for {len(dngs)} DNGs")
+    for name in dngs:
+        try:
+            read_dng_info(folder / name)
+        except Exception as error:  # noqa: BLE001 - an unreadable output is the finding
+            problems.append(f"{name} unreadable: {error}")
+    return problems
+
+
 CASES = {"kill": kill_case, "signal": signal_case, "concurrent": concurrent_case,
-         "disk-full": disk_full_case, "read-only": read_only_case}
+         "disk-full": disk_full_case, "read-only": read_only_case, "command-signal": command_signal_case}
 
 
 def campaign(kind: str, n: int, seed: int = 0) -> dict:

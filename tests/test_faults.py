@@ -36,6 +36,12 @@ def test_fault_campaign(kind):
     assert result["findings"] == [], result["findings"][:3]
 
 
+@pytest.mark.slow
+def test_convert_stopped_at_random_moments():
+    result = _campaign("command-signal", int(os.environ.get("G2R_FAULT_COMMAND_CASES", "10")), seed=2)
+    assert result["findings"] == [], result["findings"][:3]
+
+
 def test_the_harness_sees_a_broken_folder(tmp_path):
     sys.path.insert(0, str(HARNESS.parent))
     import fault_harness as fh
