@@ -4,8 +4,9 @@ A white's correlated colour temperature (here in mired, 10^6 / CCT, where equal 
 roughly equal visual steps) and its Duv, the signed distance in CIE 1960 uv from the Planckian
 locus along the locus normal, positive towards green (ANSI C78.377; Ohno, LEUKOS 10(1), 2014).
 The Planckian locus is Krystek's rational approximation (J. Opt. Soc. Am. A 2(3), 1985; uv within
-1e-4 of Planck's law from 1000 K to 15000 K); forward (`mired_duv_to_xy`, JAX, differentiable)
-and inverse (`xy_to_mired_duv`, numpy) use the same locus, so they invert each other exactly.
+1e-4 of Planck's law from 1000 K to 15000 K), its normal from the rational function's derivative.
+Forward (`mired_duv_to_xy`: JAX, jitted, differentiable; `mired_duv_to_xy_numpy`: float64 numpy)
+and inverse (`xy_to_mired_duv`, numpy) use the same locus, so they invert each other.
 Internally Duv is held x 1000 (`DUV_SCALE`) so both coordinates are of order 1-100.
 """
 
@@ -15,11 +16,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from g2r_jax.runtime.x64 import enable_x64
-
-DUV_SCALE = 1000.0                       # stored coordinate = Duv x 1000
+DUV_SCALE = 1000.0                           # stored coordinate = Duv x 1000
 MIRED_RANGE = (1e6 / 15000.0, 1e6 / 1500.0)  # where Krystek's locus holds (and real lights lie)
-
 
 _U = ((0.860117757, 1.54118254e-4, 1.28641212e-7), (1.0, 8.42420235e-4, 7.08145163e-7))
 _V = ((0.317398726, 4.22806245e-5, 4.20481691e-8), (1.0, -2.89741816e-5, 1.61456053e-7))
@@ -33,30 +31,37 @@ def _rational(coefficients, t):
     return numerator / denominator, slope
 
 
-def planckian_uv(cct):
-    """CIE 1960 uv of a blackbody at `cct` kelvin (Krystek 1985, 1000-15000 K)."""
-    return jnp.stack([_rational(_U, cct)[0], _rational(_V, cct)[0]], -1)
-
-
-@jax.jit
-def _locus_and_normal(mired):
-    """Planckian uv at `mired` and the unit normal there pointing to +v (Duv > 0 side)."""
+def _locus_and_normal(mired, xp):
+    """Planckian uv at `mired` and the unit normal there pointing to +v (the Duv > 0 side)."""
     t = 1e6 / mired
     (u, du), (v, dv) = _rational(_U, t), _rational(_V, t)
-    normal = jnp.stack([-dv, du], -1)   # perpendicular to the tangent (du, dv)/dT
-    normal = normal * jnp.sign(normal[..., 1:2]) / jnp.linalg.norm(normal, axis=-1, keepdims=True)
-    return jnp.stack([u, v], -1), normal
+    normal = xp.stack([-dv, du], -1)   # perpendicular to the tangent (du, dv)/dT
+    normal = normal * xp.sign(normal[..., 1:2]) / xp.linalg.norm(normal, axis=-1, keepdims=True)
+    return xp.stack([u, v], -1), normal
+
+
+def _to_xy(point, xp):
+    uv, normal = _locus_and_normal(point[..., 0], xp)
+    uv = uv + (point[..., 1:2] / DUV_SCALE) * normal
+    u, v = uv[..., 0], uv[..., 1]
+    denominator = 2 * u - 8 * v + 4
+    return xp.stack([3 * u / denominator, 2 * v / denominator], -1)
 
 
 @jax.jit
 def mired_duv_to_xy(point):
-    """(..., 2) points (mired, Duv x 1000) -> CIE 1931 xy (..., 2)."""
-    point = jnp.asarray(point)
-    uv, normal = _locus_and_normal(point[..., 0])
-    uv = uv + (point[..., 1:2] / DUV_SCALE) * normal
-    u, v = uv[..., 0], uv[..., 1]
-    denominator = 2 * u - 8 * v + 4
-    return jnp.stack([3 * u / denominator, 2 * v / denominator], -1)
+    """(..., 2) points (mired, Duv x 1000) -> CIE 1931 xy (..., 2), JAX."""
+    return _to_xy(jnp.asarray(point), jnp)
+
+
+def mired_duv_to_xy_numpy(point) -> np.ndarray:
+    """`mired_duv_to_xy` in float64 numpy (fit-time work, no compilation)."""
+    return _to_xy(np.asarray(point, np.float64), np)
+
+
+def planckian_uv(cct):
+    """CIE 1960 uv (..., 2) of a blackbody at `cct` kelvin (Krystek 1985, 1000-15000 K), numpy."""
+    return _locus_and_normal(1e6 / np.asarray(cct, np.float64), np)[0]
 
 
 def xy_to_mired_duv(xy) -> np.ndarray:
@@ -66,13 +71,12 @@ def xy_to_mired_duv(xy) -> np.ndarray:
     xy = np.asarray(xy, np.float64).reshape(-1, 2)
     denominator = -2 * xy[:, 0] + 12 * xy[:, 1] + 3
     uv = np.stack([4 * xy[:, 0] / denominator, 6 * xy[:, 1] / denominator], -1)
-    with enable_x64():   # a 0.01-mired step moves uv by ~1e-6: float32 cannot resolve it
-        grid = np.linspace(40.0, 1000.0, 9601)
-        locus = np.asarray(planckian_uv(jnp.asarray(1e6 / grid, jnp.float64)))
-        mired = grid[np.argmin(((uv[:, None] - locus[None]) ** 2).sum(-1), 1)]
-        for level in range(1, 4):
-            fine = mired[:, None] + np.linspace(-1.0, 1.0, 201)[None] * 10.0 ** -level
-            fine_locus = np.asarray(planckian_uv(jnp.asarray(1e6 / fine, jnp.float64)))
-            mired = fine[np.arange(len(xy)), np.argmin(((uv[:, None] - fine_locus) ** 2).sum(-1), 1)]
-        base, normal = (np.asarray(a) for a in _locus_and_normal(jnp.asarray(mired, jnp.float64)))
+    grid = np.linspace(40.0, 1000.0, 9601)
+    locus = _locus_and_normal(grid, np)[0]
+    mired = grid[np.argmin(((uv[:, None] - locus[None]) ** 2).sum(-1), 1)]
+    for level in range(1, 4):
+        fine = mired[:, None] + np.linspace(-1.0, 1.0, 201)[None] * 10.0 ** -level
+        fine_locus = _locus_and_normal(fine, np)[0]
+        mired = fine[np.arange(len(xy)), np.argmin(((uv[:, None] - fine_locus) ** 2).sum(-1), 1)]
+    base, normal = _locus_and_normal(mired, np)
     return np.stack([mired, ((uv - base) * normal).sum(-1) * DUV_SCALE], -1)

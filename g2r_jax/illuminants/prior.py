@@ -37,7 +37,7 @@ import numpy as np
 from g2r_jax.colour import dng_model as _dng
 from g2r_jax.colour.spectrum_locus import locus_halfplanes
 from g2r_jax.illuminants import distributions as _distributions
-from g2r_jax.illuminants.mired_duv import DUV_SCALE, MIRED_RANGE, mired_duv_to_xy
+from g2r_jax.illuminants.mired_duv import DUV_SCALE, MIRED_RANGE, mired_duv_to_xy, mired_duv_to_xy_numpy
 from g2r_jax.runtime.x64 import enable_x64
 
 PRIOR_FILE = "illuminant_prior.json"
@@ -132,12 +132,11 @@ def _duv_ceiling_table(count: int = 256):
     mired = np.linspace(MIRED_RANGE[0], MIRED_RANGE[1], count)
     planes = locus_halfplanes()
     low, high = np.zeros(count), np.full(count, DUV_LIMIT * DUV_SCALE)
-    with enable_x64():
-        for _ in range(40):
-            middle = 0.5 * (low + high)
-            xy = np.asarray(mired_duv_to_xy(jnp.asarray(np.stack([mired, middle], -1), jnp.float64)))
-            inside = np.max(xy @ planes[:, :2].T + planes[:, 2], axis=1) <= 0
-            low, high = np.where(inside, middle, low), np.where(inside, high, middle)
+    for _ in range(40):
+        middle = 0.5 * (low + high)
+        xy = mired_duv_to_xy_numpy(np.stack([mired, middle], -1))
+        inside = np.max(xy @ planes[:, :2].T + planes[:, 2], axis=1) <= 0
+        low, high = np.where(inside, middle, low), np.where(inside, high, middle)
     return mired, low
 
 
