@@ -41,7 +41,8 @@ def _list(values, fmt="{:+.2g}") -> str:
 def sentence(f: dict) -> str:
     """What differs between the measured files and the profile's simulation, and by how much."""
     cause, d = f.get("source", f["cause"]), np.asarray(f.get("difference") or [], np.float64)
-    worst = float(np.max(np.abs(d))) if d.size else 0.0
+    finite = np.abs(d[np.isfinite(d)])
+    worst = float(finite.max()) if finite.size else 0.0
     if cause == "black_level":
         return (f"The sensor's black sits {_list(f.get('difference_dn', d), '{:+.2f}')} DN (per CFA position) "
                 "away from where the profile puts it, measured on pixels that see no light.")
@@ -81,7 +82,10 @@ def action(f: dict, report: dict) -> str:
     if f.get("kept"):
         where = (f"the extended profile {written} includes it: convert with `g2r-convert --profile {written}`"
                  if written else "rerun with --extended-profile PATH to save a profile that includes it")
-        return f"Fixed by the fitted extension (it lowers the discrepancy on files it was not fitted on); {where}."
+        checked = (f.get("gain") or {}).get("heldout")
+        how = ("it lowers the discrepancy on data it was not fitted on" if checked else
+               "it lowers the discrepancy on the one file it was fitted on; audit more files to check it")
+        return f"Fixed by the fitted extension ({how}); {where}."
     if f["cause"] == "unexplained" and f.get("candidate"):
         return (f"The {f['candidate']} extension did not help on files it was not fitted on, so the profile is "
                 "left as it is; the difference is real but its cause is not one the audit can fit.")
