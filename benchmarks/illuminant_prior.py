@@ -11,7 +11,7 @@ matrices alone) and a Gaussian + hull fitted to a random half of the held-out ca
 scored on the other half (an oracle: it has seen the camera's scenes). Every model draws
 `SAMPLES` neutrals per seed; figures are means over `SEEDS` seeds (and half-splits).
 
-    python benchmarks/illuminant_prior.py [--data ../shared/data] [--few-lights]
+    python benchmarks/illuminant_prior.py [--data ../shared/data] [--few-lights | --rpi]
 """
 
 from __future__ import annotations
@@ -101,13 +101,51 @@ def few_lights_rows(sets, counts=(3, 5, 10, 20, 40), repeats=10) -> list[dict]:
     return rows
 
 
+RPI_PROFILES = {"rpi_hq_imx477": "imx477", "rpi_camera_module_3_imx708": "imx708", "rpi_global_shutter_imx296": "imx296"}
+
+
+def rpi_rows(data_root) -> list[dict]:
+    """The prior (all measured sets) and the S3 locus, each mapped into a shipped Raspberry Pi profile
+    (its three-illuminant DNG model), against that sensor's measured AWB locus `rpi.awb.ct_curve`:
+    the camera neutrals of Raspberry Pi's calibration lights. Few lights, none a scene: coverage only."""
+    import json
+    import re
+
+    from g2r_jax.illuminants.prior import load_prior
+    from g2r_jax.profile.schema import load_profile
+
+    rows = []
+    for name, sensor in RPI_PROFILES.items():
+        colour = load_profile(name, dtype=np.float64).colour
+        text = (data_root / "cameras/rpi_libcamera/vc4" / f"{sensor}.json").read_text()
+        tuning = json.loads(re.sub(r",(\s*[}\]])", r"\1", text))   # libcamera tolerates trailing commas
+        awb = next(a["rpi.awb"] for a in tuning["algorithms"] if "rpi.awb" in a)
+        curve = np.asarray(awb["ct_curve"], np.float64).reshape(-1, 3)
+        for label, model in (("S3 locus", D.fit_locus(colour, dtype=np.float64)),
+                             ("prior 'day'", model_for_camera(colour, "day", load_prior(), dtype=np.float64))):
+            _, coverage, far = model_score(model, curve[:, 1:])
+            rows.append(dict(camera=name, model=label, lights=len(curve), span=(curve[0, 0], curve[-1, 0]),
+                             coverage=float(coverage), far=float(far)))
+    return rows
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=Path("../shared/data"))
     parser.add_argument("--few-lights", action="store_true",
                         help="instead: a Gaussian + hull fitted to 3-40 of a camera's own lights, scored on the rest")
+    parser.add_argument("--rpi", action="store_true",
+                        help="instead: coverage of the Raspberry Pi sensors' measured AWB loci (shipped rpi_* profiles)")
     args = parser.parse_args(argv)
     jax.config.update("jax_enable_x64", True)
+    if args.rpi:
+        print(f"| profile | model | calibration lights (CT) | within {RADIUS} | beyond {2 * RADIUS} |")
+        print("|---|---|---|---|---|")
+        for row in rpi_rows(args.data):
+            low, high = row["span"]
+            print(f"| {row['camera']} | {row['model']} | {row['lights']} ({low:.0f}-{high:.0f} K) | "
+                  f"{row['coverage']:.2f} | {row['far']:.2f} |")
+        return 0
     if args.few_lights:
         print(f"| camera | own lights fitted | energy distance | within {RADIUS} | beyond {2 * RADIUS} |")
         print("|---|---|---|---|---|")
