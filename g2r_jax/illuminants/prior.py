@@ -15,10 +15,10 @@ fitted curve and for the error of a camera's colour matrices, which moves its li
 Into a camera: each component is split into sub-components along its major axis and each
 sub-component mapped to the camera's (r/g, b/g) through the camera's DNG colour model, linearised
 at its centre (mean -> camera chromaticity of that white, covariance -> J C J^T with J the
-Jacobian of (mired, Duv) -> (r/g, b/g)). The result is an ordinary `IlluminantModel` (kind
-'prior'), restricted by rejection to the camera image of the prior's support (`MIRED_RANGE`,
-|Duv| <= `DUV_LIMIT`, inside the spectrum locus: `duv_ceiling`) and to positive r/g and b/g, so it is stored in and sampled from a profile
-like every other illuminant model.
+Jacobian of (mired, Duv) -> (r/g, b/g), by central differences). The result is an ordinary
+`IlluminantModel` (kind 'prior'), restricted by rejection to the camera image of the prior's
+support (`MIRED_RANGE`, |Duv| <= `DUV_LIMIT` and inside the spectrum locus: `duv_ceiling`) and to
+positive r/g and b/g, so it is stored in and sampled from a profile like every other model.
 """
 
 from __future__ import annotations
@@ -97,7 +97,7 @@ def prior_from_dict(document: dict, source: str = "<prior>") -> IlluminantPrior:
                                  f"(unknown: {sorted(unknown)})")
         return IlluminantPrior(populations, presets, float(document["duv_spread"]), str(document.get("source", "")))
     except (KeyError, TypeError) as error:
-        raise ValueError(f"{source}: illuminant prior is missing or malforms {error}") from None
+        raise ValueError(f"{source}: illuminant prior with a missing or malformed field ({error})") from None
     except ValueError as error:
         raise ValueError(f"{source}: {error}") from None
 
