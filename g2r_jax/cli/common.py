@@ -120,7 +120,17 @@ def run_command(name: str, body, argv, parser, check=None) -> int:
     be written), reported like argparse's own errors before anything is imported or computed.
     Without `--no-compile-cache` JAX's persistent compilation cache is on
     (`g2r_jax.runtime.compile_cache`). XLA's deterministic GPU operations are requested
-    (`g2r_jax.runtime.deterministic`)."""
+    (`g2r_jax.runtime.deterministic`).
+
+    SIGINT and SIGTERM stop the command cleanly from its first line on (`StopOnSignal`).
+    """
+    from g2r_jax.cli.interruption import StopOnSignal
+
+    with StopOnSignal(name):
+        return _run_command(name, body, argv, parser, check)
+
+
+def _run_command(name: str, body, argv, parser, check=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if not argv:
         parser.print_help(sys.stderr)
@@ -133,9 +143,6 @@ def run_command(name: str, body, argv, parser, check=None) -> int:
     if problem:   # a value, not the syntax: one line, like every other error of ours
         print(f"{name}: error: {one_line(problem)}", file=sys.stderr)
         return 2
-    from g2r_jax.cli.interruption import StopOnSignal
-
-    stop = StopOnSignal(name).install()     # from here on (JAX imports included) a signal stops cleanly
     from g2r_jax.runtime.deterministic import request_deterministic_gpu_ops
 
     request_deterministic_gpu_ops()
@@ -144,7 +151,7 @@ def run_command(name: str, body, argv, parser, check=None) -> int:
 
         enable(program=name)
     debug = bool(getattr(args, "debug", False))
-    with stop, quiet_libraries(name, debug):
+    with quiet_libraries(name, debug):
         try:
             return int(body(args) or 0)
         except KeyboardInterrupt:
