@@ -27,6 +27,7 @@ from g2r_jax.io.atomic import OutputError, atomic_write_bytes
 from g2r_jax.io.dng_info import DngError, DngInfo
 from g2r_jax.io.image_headers import DEFAULT_MAX_PIXELS
 from g2r_jax.io.output_folder import OutputFolder
+from g2r_jax.batch.program_store import stored_program
 from g2r_jax.pipeline import unprocess_batch
 from g2r_jax.sensor.effects import changes_nothing
 
@@ -195,7 +196,8 @@ def _batched_unprocess(options: ConvertOptions, transfer: str, with_neutral: boo
                                    iso=iso if options.iso is not None else None,
                                    lens_gain=lens_gain if options.lens_shading else None)
 
-        _COMPILED[signature] = jax.jit(batch)
+        # traced once per option set and shape, then kept on disk for the next process (program_store)
+        _COMPILED[signature] = stored_program(repr(signature), jax.jit(batch))
     return _COMPILED[signature]
 
 
