@@ -374,7 +374,7 @@ def convert_case(work: Path, good_image: Path, mutated_name: str, image_data: by
             problems.append(f"exit 2 with a good profile: {err.strip()[:300]!r}")
         elif len(lines) != 1 or "profile.json" not in lines[0]:
             problems.append(f"refused profile not named in one line: {err.strip()[:300]!r}")
-        if output.exists() and any(output.iterdir()):
+        if output.exists() and any(p.name != ".g2r.lock" for p in output.iterdir()):
             problems.append("output left although the profile was refused")
     elif status in (0, 1):
         good = output / "good.dng"
