@@ -8,7 +8,7 @@ from pathlib import Path
 
 from g2r_jax.cli.common import (
     add_common_flags, command_parser, error_message, one_line, output_file_problem, required_group,
-    run_command)
+    run_command, shown)
 
 
 def validate_profile(profile, path) -> None:
@@ -159,7 +159,7 @@ def body(args) -> int:
             try:   # every check of one file's tags happens here, before any folder-wide solver
                 info = check_file_colour(require_bayer_cfa(require_colour_tags(read_dng_info(path))))
                 for warning in info.warnings:
-                    print(f"g2r-fit-profile: warning: {path}: {one_line(warning)}", file=sys.stderr)
+                    print(f"g2r-fit-profile: warning: {one_line(f'{shown(path)}: {warning}')}", file=sys.stderr)
                 infos.append(info)
             except Exception as error:  # noqa: BLE001 - report and go on
                 failures.append(error_message(error) if str(path) in str(error) else
@@ -168,7 +168,7 @@ def body(args) -> int:
         chromaticities = None
         source = f"{len(infos)} DNG file(s) from {', '.join(str(d) for d in args.dng_dirs)}"
     for line in failures:
-        print(f"g2r-fit-profile: error: {line}", file=sys.stderr)
+        print(f"g2r-fit-profile: error: {one_line(line)}", file=sys.stderr)
     if not infos:
         raise ValueError("no usable DNG files; nothing to fit")
     noise = None
@@ -202,7 +202,7 @@ def body(args) -> int:
             (k, profile), = fits.items()
             line = one_line(f"{infos[k].path}: dropped, no valid profile with this file ({error_message(error)})")
             failures.append(line)
-            print(f"g2r-fit-profile: error: {line}", file=sys.stderr)
+            print(f"g2r-fit-profile: error: {one_line(line)}", file=sys.stderr)
             infos = infos[:k] + infos[k + 1:]
     if profile is None:   # several bad files: keep those that give a valid profile on their own
         survivors = []
@@ -213,7 +213,7 @@ def body(args) -> int:
             except Exception as single:  # noqa: BLE001
                 line = one_line(f"{info.path}: dropped, no valid profile with this file ({error_message(single)})")
                 failures.append(line)
-                print(f"g2r-fit-profile: error: {line}", file=sys.stderr)
+                print(f"g2r-fit-profile: error: {one_line(line)}", file=sys.stderr)
         if not survivors or len(survivors) == len(infos):
             raise ValueError(f"no valid profile from {len(infos)} file(s): {error_message(first_error)}")
         infos = survivors
@@ -221,7 +221,7 @@ def body(args) -> int:
     if chromaticities is None:
         note = levels_from_infos(infos)[2]
         if note and not args.quiet:
-            print(f"g2r-fit-profile: note: {note}", file=sys.stderr)
+            print(f"g2r-fit-profile: note: {one_line(note)}", file=sys.stderr)
     if args.sensitivities:
         profile = _with_sensitivities(profile, args.sensitivities, args.sensitivities_camera, chromaticities, infos)
     save_profile(profile, args.output)
