@@ -189,7 +189,7 @@ def exposure_spread() -> tuple[ExposureModel, str]:
             f"Canon 5D raw images. That is 1.4826 x MAD of log2 of the ColorChecker white patch's green level "
             f"(black 129 subtracted; {482 - len(stops)} saturated or dark patches left out; "
             f"../shared/data/illuminants/gehler_shi); mean 0 keeps the input image's own exposure. A scene "
-            f"statistic, used for every camera built by this script.")
+            f"statistic, used for every camera built by this script but the S20 FE at night.")
     return ExposureModel(log2_mean=np.float32(0.0), log2_std=np.float32(spread)), text
 
 
@@ -254,7 +254,7 @@ def dslr_profiles(cameras: dict, noise_db: dict, exposure: tuple) -> None:
         save_profile(profile, HERE / f"{name}.json")
 
 
-def s20fe_night(cameras: dict, exposure: tuple) -> None:
+def s20fe_night(cameras: dict) -> None:
     matrix = np.reshape(cameras["Samsung Galaxy S20 FE (main camera)"]["ColorMatrix_D65_tag21"], (3, 3))
     info = DngInfo(path="s20fe", unique_camera_model="Samsung Galaxy S20 FE main camera",
                    make="Samsung", model="Galaxy S20 FE", calibration_illuminants=(21,),
@@ -266,7 +266,7 @@ def s20fe_night(cameras: dict, exposure: tuple) -> None:
     profile = fit_profile([info], name="s20fe_night", illuminant_model=S20_CHOICE, noise=noise,
                           chromaticities=neutral_to_chromaticity(rows))
     profile = with_provenance(
-        replace(profile, exposure=exposure[0]),
+        profile,
         colour=f"its D65 ColorMatrix only (one calibration illuminant), from the Graphics2RAW release. The only "
                f"matrix released ({PAPERS}).",
         levels="black 64, white 1023 (10-bit), as stated with the noise calibration; CFA RGGB assumed. "
@@ -275,7 +275,8 @@ def s20fe_night(cameras: dict, exposure: tuple) -> None:
               f"../shared/data/noise/s20fe_heteroscedastic_gaussian.csv ({PAPERS}).",
         illuminants=f"45 measured gray-card night illuminants ({S20_CHOICE} model and convex hull, sodium lamps kept). "
                     f"s20fe_night_graycard_45.csv ({PAPERS}).",
-        exposure=exposure[1])
+        exposure="constant (log2 gain 0): no measured exposure statistics of night scenes. The Gehler-Shi "
+                 "spread of the other profiles is of day and indoor scenes.")
     save_profile(profile, HERE / "s20fe_night.json")
 
 
@@ -301,7 +302,7 @@ def main() -> int:
     noise_db = json.loads((DATA / "noise" / "darktable" / "noiseprofiles.json").read_text())
     exposure = exposure_spread()
     dslr_profiles(cameras, noise_db, exposure)
-    s20fe_night(cameras, exposure)
+    s20fe_night(cameras)
     gopro(exposure)
     for name, reason in NOT_SHIPPED.items():
         stale = HERE / f"{name}.json"
