@@ -12,7 +12,8 @@ command of an older checkout, run as `python -m` with that checkout first on PYT
 - imports:   `python -X importtime -c "import g2r_jax.batch.conversion"` (what `g2r-convert`
   imports before its first frame): the total and the largest packages.
 - first frame: `g2r-convert ONE.png` end to end with an empty compilation cache (cold) and with
-  the cache the cold run filled (warm), split into its phases in one process (imports, profile,
+  the cache the cold run filled (warm), also without the traced programs kept on disk
+  (`G2R_JAX_NO_PROGRAM_STORE=1`), split into its phases in one process (imports, profile,
   first DNG written, then a second DNG of the same size: what a frame costs once the program is
   traced); beside it the floor: Python + `import jax` + one trivial jitted call.
 """
@@ -197,16 +198,17 @@ def section_first_frame(shape, repeat: int, baseline: str | None) -> None:
         folder = Path(folder)
         frame = folder / "frame.png"
         write_frame(frame, shape)
-        sides = [("this checkout", environment())] + ([(baseline, environment(baseline))] if baseline else [])
+        sides = [("this checkout", environment()),
+                 ("this checkout, no program store", environment(G2R_JAX_NO_PROGRAM_STORE="1"))]
+        sides += [(baseline, environment(baseline))] if baseline else []
         results = []
         for k, (name, env) in enumerate(sides):
             cold, warm = convert_walls(frame, folder, repeat, env, f"side{k}")
             results.append((statistics.median(cold), statistics.median(warm)))
             print(f"  {name}: cold cache {results[-1][0]:6.3f} s   warm cache {results[-1][1]:6.3f} s"
                   f"   (warm runs: {', '.join(f'{s:.2f}' for s in warm)})")
-        if baseline:
-            print(f"  ratio (baseline / this): cold {results[1][0] / results[0][0]:.2f}x, "
-                  f"warm {results[1][1] / results[0][1]:.2f}x")
+        for (name, _), (cold, warm) in list(zip(sides, results))[1:]:
+            print(f"  ratio ({name} / this checkout): cold {cold / results[0][0]:.2f}x, warm {warm / results[0][1]:.2f}x")
         env = environment(G2R_JAX_CACHE_DIR=str(folder / "cache_side0_0"))
         phases = []
         for k in range(repeat):
