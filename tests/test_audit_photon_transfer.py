@@ -96,3 +96,11 @@ def test_injected_pedestal_is_named_from_dark_frames_or_optical_black(margin, n_
     first = report["findings"][0]
     assert first["kept"] and first["gain"]["after"] < first["gain"]["before"]
     assert np.allclose(first["params"]["black_pedestal_dn"], 3.0, atol=0.2)
+
+
+def test_quiet_integer_dark_frame_is_a_dark_frame():
+    """Read noise of 0.4 DN: most neighbour differences are 0 DN, and a MAD-based noise scale is
+    0; the dark frame must still be recognised (else it counts as a black scene)."""
+    truth = BurstTruth(**{**TEN_BIT.__dict__, "read": 0.16 / 959**2, "prnu": 0.0, "dsnu_dn": 0.0})
+    (dark, info), = burst(truth, np.zeros((120, 180)), 0, seed=3, n_dark=1)
+    assert black_evidence.is_dark_frame(dark, info.black_level, truth.span)

@@ -37,6 +37,12 @@ def _robust_sd(values) -> float:
     return float(_MAD_TO_STD * np.median(np.abs(values - np.median(values)))) if values.size else np.nan
 
 
+def _robust_variance(d) -> float:
+    from g2r_jax.audit.stats import _robust_variance as trimmed
+
+    return float(trimmed(np.asarray(d, np.float64))) if np.size(d) else np.nan
+
+
 def _half_means(pixels_by_position) -> dict:
     """{"offset", "se", "count", "A", "B", "se_A", "se_B"} from per-position lists of (rows,
     values) in DN minus the tag; halves by the parity of the tile row."""
@@ -174,7 +180,9 @@ def is_dark_frame(mosaic, black_dn, span) -> bool:
         if h == 0 or w == 0:
             return False
         plane = plane[:h, :w]
-        pixel_sd = _robust_sd(np.diff(plane, axis=1)) / np.sqrt(2)   # noise, whatever the level
+        # noise, whatever the level: a trimmed second moment of neighbour differences (a MAD is 0
+        # on integer data of ~0.5 DN noise, where most differences are 0)
+        pixel_sd = np.sqrt(_robust_variance(np.diff(plane, axis=1).ravel()) / 2)
         blocks = plane.reshape(h // 8, 8, w // 8, 8).mean(axis=(1, 3))
         level = (np.median(plane) - black_dn[p]) / span[p]
         if not (abs(level) < DARK_FRAME_MAX and pixel_sd > 0):
