@@ -194,3 +194,21 @@ def test_the_commands_page_lists_every_option():
                 continue
             for option in action.option_strings:
                 assert option in section, f"docs/pages/commands.md: {name} {option} missing (paste its --help)"
+
+
+def test_a_profile_without_noise_is_announced_even_when_quiet(tmp_path, capsys):
+    import json
+
+    from g2r_jax.cli.convert import main as convert_main
+    from g2r_jax.profile.shipped import profile_path
+
+    document = json.loads(profile_path("gopro_hero6").read_text())
+    document["noise"]["shot"] = [[0.0] * 4 for _ in document["noise"]["shot"]]
+    document["noise"]["read"] = [[0.0] * 4 for _ in document["noise"]["read"]]
+    silent = tmp_path / "silent.json"
+    silent.write_text(json.dumps(document))
+    assert convert_main(["--example", "--profile", str(silent), "-o", str(tmp_path / "out"), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "no noise model" in err and "silent" in err
+    assert convert_main(["--example", "--profile", "gopro_hero6", "-o", str(tmp_path / "out2"), "--quiet"]) == 0
+    assert "no noise model" not in capsys.readouterr().err

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from g2r_jax.cli.common import (
     add_common_flags, command_parser, output_folder_problem, required_group, run_command)
-from g2r_jax.cli.common import error_message, one_line
+from g2r_jax.cli.common import error_message, one_line, shown
 
 DEFAULT_EXAMPLE_PROFILE = "Canon600D"
 USAGE = """g2r-convert INPUT [INPUT ...] --profile NAME|FILE -o OUT_DIR [options]
@@ -153,6 +153,10 @@ def body(args) -> int:
     if args.example and not args.quiet:
         print(f"g2r-convert: example scene with profile {profile_name!r}"
               f"{' (the default; --profile NAME picks another)' if not args.profile else ''}", file=sys.stderr)
+    if not args.no_noise and not (float(profile.noise.shot.max()) > 0 or float(profile.noise.read.max()) > 0):
+        print(f"g2r-convert: warning: profile {shown(profile_name)} has no noise model (shot and read noise are 0): "
+              "the DNGs will be noise-free; fit the noise with g2r-fit-profile (NoiseProfile tags, the pixels, or "
+              "--noise-table)", file=sys.stderr)
     if args.colour != "matrix" and profile.spectral is None:
         from g2r_jax.colour.spectral import attach_spectral
 

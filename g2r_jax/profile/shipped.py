@@ -4,7 +4,6 @@ the commands can check a profile argument and list profiles without importing JA
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 
@@ -49,22 +48,3 @@ def profile_path(name_or_path) -> Path:
         raise UnknownProfile(f"{path}: is a folder; a profile is a JSON file or a shipped name")
     raise UnknownProfile(f"{path}: no such profile file")
 
-
-def describe_shipped() -> list[tuple[str, str]]:
-    """(name, one line saying what it is) for every shipped profile, read from its JSON."""
-    rows = []
-    for name in shipped_profiles():
-        try:
-            document = json.loads((SHIPPED_PROFILES_DIR / f"{name}.json").read_text())
-            camera = document.get("camera", {}).get("unique_camera_model") or "camera not named"
-            illuminants = document.get("illuminants", {}).get("kind", "?")
-            provenance = document.get("provenance", "")
-            if isinstance(provenance, dict):   # given per part: the colour's source says most
-                provenance = provenance.get("colour") or next(iter(provenance.values()), "")
-            provenance = " ".join(str(provenance).split())
-            first = provenance.split(". ")[0].rstrip(".")
-            line = f"{camera}; {illuminants} illuminant model; {first}"
-        except (OSError, ValueError, AttributeError) as error:
-            line = f"unreadable ({type(error).__name__})"
-        rows.append((name, line if len(line) <= 110 else line[:107] + "..."))
-    return rows
