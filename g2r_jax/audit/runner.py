@@ -99,7 +99,7 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
       (simulated files take the commonest size, scaled to at most `SIMULATION_PIXELS`).
     - `scenes`: (N, H, W, 3) sRGB images in [0, 1], or a folder of images, to simulate from;
       default: built-in dead-leaves scenes (`g2r_jax.audit.scenes`).
-    - `n_simulated`: number of simulated files (default: as many as measured, at least 24).
+    - `n_simulated`: number of simulated files (default: as many as the measured scenes, at least 24).
     - `seed`: everything random (scenes, simulation, permutations, folds) derives from it.
     - `alpha`: family-wise error rate over all tests (Bonferroni over the statistics, maxT
       within each).
@@ -177,7 +177,7 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
     items = [f["name"] for f in measured_stats]
     shapes = [f["shape"] for f in (units or measured_stats)]
     with_lens = lens_shading_in(measured_stats)
-    n_sim = n_simulated or max(24, len(items))
+    n_sim = n_simulated or max(24, len(units) or len(items))   # scenes: dark frames and bursts are not
     sizes = simulation_sizes(shapes, n_sim)
     if scenes is None:
         scene_groups = [scene_set(count, seed + 7919 + 97 * k, h, w) for k, ((h, w), count) in enumerate(sizes)]
