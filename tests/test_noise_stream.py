@@ -1,4 +1,4 @@
-"""The noise stream (`g2r_jax.sensor.standard_normal*`): exact layout/batch invariance, the
+"""The noise stream (`g2r_jax.sensor.noise.stream`): exact layout/batch invariance, the
 inverse-CDF transform against scipy's, and the statistics of the draws."""
 
 import numpy as np
@@ -7,7 +7,7 @@ import numpy as np
 def test_mosaic_draws_are_the_flat_draws_padding_and_vmap_change_nothing():
     import jax
 
-    from g2r_jax import sensor
+    from g2r_jax.sensor.noise import stream as sensor
 
     for key in (jax.random.PRNGKey(3), jax.random.key(4)):
         flat = np.asarray(jax.jit(lambda k: sensor.standard_normal(k, (12, 20)))(key))
@@ -26,7 +26,7 @@ def test_transform_matches_the_exact_normal_quantile():
     import jax.numpy as jnp
     from scipy.special import ndtri
 
-    from g2r_jax import sensor
+    from g2r_jax.sensor.noise import stream as sensor
 
     mantissa = np.arange(0, 2**23, dtype=np.uint32)          # every value of v the stream can draw
     exact_negative = ndtri((mantissa.astype(np.float64) + 0.5) / 2**24)
@@ -40,7 +40,7 @@ def test_transform_matches_the_exact_normal_quantile():
 
 
 def test_quantile_polynomials_are_the_documented_fits():
-    from g2r_jax import sensor
+    from g2r_jax.sensor.noise import stream as sensor
 
     quantile, log1p = sensor._quantile_coefficients()
     np.testing.assert_allclose(sensor._QUANTILE, quantile, rtol=1e-6, atol=1e-9)
@@ -51,7 +51,7 @@ def test_draws_are_standard_normal_and_uncorrelated_across_neighbours_and_keys()
     import jax
     from scipy import stats
 
-    from g2r_jax import sensor
+    from g2r_jax.sensor.noise import stream as sensor
 
     shape = (1024, 1024)
     n = shape[0] * shape[1]

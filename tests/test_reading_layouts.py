@@ -32,10 +32,15 @@ def test_undecodable_compression_is_one_warning_and_tags_still_fit(tmp_path, cap
     with pytest.raises(DngError, match=f"packed.dng: .*{name}.*cannot decode"):
         read_dng_pixels(folder / "packed.dng")
     assert fit_main([str(folder), "-o", str(tmp_path / "p.json")]) == 0
-    err = capsys.readouterr().err.strip().splitlines()
+    err = [line for line in capsys.readouterr().err.strip().splitlines() if not _rounding_note(line)]
     assert len(err) == 1 and "packed.dng" in err[0] and name in err[0] and "tags still used" in err[0]
     assert json.loads((tmp_path / "p.json").read_text())["white_level"] == 1023.0
 
+
+
+def _rounding_note(line: str) -> bool:
+    """The warning these fixtures' tiny read noise (0.2 DN) earns: it cannot be told from rounding."""
+    return "cannot be told apart reliably" in line
 
 def test_diagnose_loading_skips_undecodable_files_with_that_line(tmp_path):
     good = tmp_path / "good.dng"
@@ -90,7 +95,7 @@ def test_levels_that_differ_give_one_note_and_the_median(tmp_path, capsys):
     for name, black, white in (("a", 60.0, 1000.0), ("b", 64.0, 1023.0), ("c", 70.0, 1023.0)):
         write_dng(folder / f"{name}.dng", random_mosaic(), make_info(black_level=np.full(4, black), white_level=white))
     assert fit_main([str(folder), "-o", str(tmp_path / "p.json")]) == 0
-    err = capsys.readouterr().err.strip().splitlines()
+    err = [line for line in capsys.readouterr().err.strip().splitlines() if not _rounding_note(line)]
     assert len(err) == 1 and "note:" in err[0] and "black levels differ" in err[0] and "white levels differ" in err[0]
     assert "a.dng" in err[0] and "c.dng" in err[0] and "Warning" not in err[0]
     document = json.loads((tmp_path / "p.json").read_text())
