@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from g2r_jax.audit.robust import trimmed_variance
+
 DARK_FRAME_MAX = 0.05        # a structureless frame this close to the tag (fraction of range) is a dark frame
 STRUCTURE_RATIO = 3.0        # block-mean spread at most this many times what pixel noise gives
 MIN_PIXELS = 256             # fewest optical-black pixels per CFA position worth a mean
@@ -38,9 +40,7 @@ def _robust_sd(values) -> float:
 
 
 def _robust_variance(d) -> float:
-    from g2r_jax.audit.stats import _robust_variance as trimmed
-
-    return float(trimmed(np.asarray(d, np.float64))) if np.size(d) else np.nan
+    return float(trimmed_variance(np.asarray(d, np.float64))) if np.size(d) else np.nan
 
 
 def _half_means(pixels_by_position) -> dict:

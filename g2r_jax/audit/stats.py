@@ -14,14 +14,10 @@ import functools
 
 import numpy as np
 
+from g2r_jax.audit.robust import trimmed_variance as _robust_variance
 from g2r_jax.sensor.noise.estimation import to_normalised_planes
 
 
-# Trimmed second moment: the mean of the smallest 90% of d^2 is 0.62302 sigma^2 for a zero-mean
-# Gaussian d (chi-square(1) truncated at its 0.9 quantile 2.7055); robust to the few differences
-# that straddle an edge, and unlike the median not stuck on the discrete values of integer DN.
-_KEEP = 0.9
-_CHI2_1_TRIMMED_MEAN = 0.6230155
 _MAD_TO_STD = 1.482602   # 1 / Phi^-1(3/4): MAD of a Gaussian -> its standard deviation
 NLF_EDGES = np.array([-0.02, 0.01, 0.03, 0.06, 0.12, 0.25, 0.45, 0.7, 0.92])
 RINGS = 7
@@ -87,15 +83,6 @@ def clipping_level(planes, white_dn: float, span: np.ndarray) -> np.ndarray:
         if counts[peak] >= max(20, 0.002 * planes[p].size) and counts[peak] >= 5 * background:
             out[p] = (peak + dn.min()) / span[p]
     return out
-
-
-def _robust_variance(d):
-    """Variance of zero-mean Gaussian samples from their trimmed second moment (see _KEEP)."""
-    if d.size == 0:
-        return np.nan
-    squares = d * d
-    keep = max(1, int(_KEEP * squares.size))
-    return np.partition(squares, keep - 1)[:keep].mean() / _CHI2_1_TRIMMED_MEAN
 
 
 def banding(planes) -> np.ndarray:
