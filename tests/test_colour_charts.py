@@ -213,7 +213,7 @@ def test_real_canon_5d_charts(shared_data, tmp_path):
 def test_audit_with_dngs_and_charts():
     """Both kinds of evidence in one run: colour first from the charts, the sensor causes from
     the files, tested against the colour-extended profile; the extended profile keeps both."""
-    from audit_helpers import measured_set
+    from audit_helpers import dark_frames, measured_set
 
     from g2r_jax.audit import causes, synthetic
 
@@ -221,7 +221,9 @@ def test_audit_with_dngs_and_charts():
     error = np.eye(3) + 0.12 * np.random.default_rng(8).normal(size=(3, 3))
     truth = replace(base, colour=DngColourModel.from_tags(
         (17, 21), [error @ np.asarray(m, np.float64) for m in base.colour.color_matrix]))
-    files = measured_set(synthetic.inject(base, "black_level", offset=0.02), 3, n=10, height=60, width=90)
+    camera = synthetic.inject(base, "black_level", offset=0.02)
+    files = (measured_set(camera, 3, n=10, height=60, width=90)     # the pedestal's evidence: dark frames
+             + dark_frames(camera, 3, height=60, width=90))
     registry = (causes.get("black_level"), causes.get("colour_matrix"))
     report = diagnose(base, files, charts=synthetic_charts(truth, 30, seed=9), seed=0, n_simulated=10,
                       causes=registry, n_permutations=300)
