@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -63,8 +62,10 @@ def test_attack_corpus_keeps_the_promises(path):
 
 def _attack_campaign(kind: str, n: int, seed: int) -> dict:
     """A campaign of tests/input_attacks.py in its own process (its peak memory is measured)."""
-    run = subprocess.run([sys.executable, str(Path(attacks.__file__)), kind, str(n), str(seed)], capture_output=True,
-                         text=True, timeout=1800)
+    from fresh_process import run_measured
+
+    run, _ = run_measured([sys.executable, str(Path(attacks.__file__)), kind, str(n), str(seed)], capture_output=True,
+                          text=True, timeout=1800)   # its own peak memory, not the test worker's
     assert run.returncode == 0, run.stderr[-2000:]
     return json.loads(run.stdout.strip().splitlines()[-1])
 

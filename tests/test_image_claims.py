@@ -3,9 +3,7 @@ a pixel budget of our own (g2r_jax.io.image_headers, g2r_jax.io.images)."""
 
 from __future__ import annotations
 
-import os
 import struct
-import subprocess
 import sys
 import zlib
 from pathlib import Path
@@ -139,16 +137,15 @@ def test_a_truncated_uncompressed_tiff_is_refused(tmp_path):
 
 
 def test_converting_the_lying_png_is_refused_by_name_in_bounded_memory(tmp_path):
-    """The whole command, in a subprocess whose peak resident memory is measured (wait4)."""
+    """The whole command, in a subprocess whose own peak resident memory is measured (fresh_process)."""
     folder = tmp_path / "in"
     folder.mkdir()
     lying_png(folder / "liar.png", 8000, 8000, 10)
-    process = subprocess.Popen([sys.executable, "-m", "g2r_jax.cli.convert", str(folder), "--profile", "NikonD40",
-                                "-o", str(tmp_path / "out")], cwd=ROOT, stderr=subprocess.PIPE,
-                               stdout=subprocess.PIPE, text=True)
-    _, _, usage = os.wait4(process.pid, 0)
-    stderr = process.stderr.read()
-    peak_gib = usage.ru_maxrss * 1024 / 2**30      # ru_maxrss is in KiB on Linux
+    from fresh_process import run_measured
+
+    result, peak_gib = run_measured([sys.executable, "-m", "g2r_jax.cli.convert", str(folder), "--profile", "NikonD40",
+                                     "-o", str(tmp_path / "out")], cwd=ROOT, capture_output=True, text=True)
+    stderr = result.stderr
     assert "liar.png: truncated: the image data holds 10 of the 8000 rows" in stderr
     assert "ecompression" not in stderr
     assert not list((tmp_path / "out").glob("*.dng"))
