@@ -80,3 +80,19 @@ def test_single_clean_dim_file_raises_no_black_level(camera):
     files = simulate.simulate(camera, dim[None], 77)
     report = diagnose(camera, files, seed=5)
     assert "black_level" not in [f["cause"] for f in significant(report)]
+
+
+def test_noise_clipped_at_zero_dn_is_not_read_as_a_noise_difference():
+    """A camera whose black level is 0 DN clips its noise at 0: the share of clipped pixels depends
+    on how much of the scene is black, so pairs touching that floor are left out of the noise level
+    function (they measure the clipping)."""
+    from g2r_jax.audit.stats import noise_level_function
+
+    rng = np.random.default_rng(3)
+    sigma = 2e-4
+    level = np.where(np.arange(256)[None, :] < 128, 0.0, 0.02) * np.ones((256, 1))  # half the scene black
+    planes = np.maximum(level[None] + sigma * rng.standard_normal((4, 256, 256)), 0.0)   # clipped at 0 DN
+    variance, mean = noise_level_function(planes, np.ones(4), np.zeros(2))
+    assert not np.any(mean < 0.01)                      # the clipped black half is not measured
+    bright = np.isfinite(variance)
+    assert bright.any() and np.all(np.abs(np.log(variance[bright] / sigma**2)) < 0.2)

@@ -134,19 +134,24 @@ def noise_level_function(planes, clip: np.ndarray, band: np.ndarray):
     i.e. the flat-region local-variance method of Foi et al., "Practical Poissonian-Gaussian noise
     modeling and fitting for single-image raw-data", IEEE TIP 2008, with a robust scale instead
     of their ML fit. Column (row) banding adds its variance to the horizontal (vertical)
-    differences; it is subtracted. Pairs near the clipping level are excluded.
+    differences; it is subtracted. Pairs near the clipping level are excluded, and so are pairs
+    within `CENSORED_MARGIN` of the plane's floor when pixels pile up there (a sensor whose black
+    level is 0 DN clips its noise at 0: there the variance measures the clipping, not the noise,
+    and by how much depends on how much of the scene is black).
     """
     nb = len(NLF_EDGES) - 1
     variance, level = np.full((4, nb), np.nan), np.full((4, nb), np.nan)
     flat = flat_mask(planes)
     for p in range(4):
         top = (clip[p] if np.isfinite(clip[p]) else 1.0) - 0.06
+        bottom = _censored_floor(planes[p])
         pieces = []
         for d_axis, excess in ((1, band[1]), (0, band[0])):
             a, f = planes[p], flat[p]
             lo = a[:, :-1] if d_axis == 1 else a[:-1]
             hi = a[:, 1:] if d_axis == 1 else a[1:]
             both = (f[:, :-1] & f[:, 1:]) if d_axis == 1 else (f[:-1] & f[1:])
+            both &= (hi + lo) / 2 > bottom + CENSORED_MARGIN
             pieces.append(((hi - lo)[both] / np.sqrt(2), ((hi + lo) / 2)[both],
                            np.maximum(lo, hi)[both], excess))
         for b in range(nb):
@@ -159,6 +164,17 @@ def noise_level_function(planes, clip: np.ndarray, band: np.ndarray):
             if estimates:
                 variance[p, b], level[p, b] = np.mean(estimates), np.mean(means)
     return variance, level
+
+
+CENSORED_SHARE = 1e-3   # share of a plane's pixels at its lowest value above which the floor is a clip
+CENSORED_MARGIN = 0.01  # normalised signal above a clipped floor below which no variance is measured
+
+
+def _censored_floor(plane) -> float:
+    """The plane's lowest value when at least `CENSORED_SHARE` of its pixels sit on it (noise
+    clipped at 0 DN), else -inf (nothing to exclude)."""
+    low = float(np.min(plane)) if plane.size else -np.inf
+    return low if np.count_nonzero(plane <= low) >= CENSORED_SHARE * plane.size else -np.inf
 
 
 def green_ratio(planes, green_positions, clip, floor=None) -> np.ndarray:
