@@ -24,23 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
-from g2r_jax.audit.robust import trimmed_variance
+from g2r_jax.audit.robust import mad_sd, trimmed_variance
 
 DARK_FRAME_MAX = 0.05        # a structureless frame this close to the tag (fraction of range) is a dark frame
 STRUCTURE_RATIO = 3.0        # block-mean spread at most this many times what pixel noise gives
 MIN_PIXELS = 256             # fewest optical-black pixels per CFA position worth a mean
-CLIPPED_FRACTION = 1e-3      # evidence with more pixels at raw 0 than this is biased by the clip: unused
+CLIPPED_FRACTION = 1e-3      # evidence with more pixels at raw 0 than this is biased by the clip: not used
 MASKED_AREAS_TAG = 50830
-_MAD_TO_STD = 1.482602
-
-
-def _robust_sd(values) -> float:
-    values = np.asarray(values, np.float64).ravel()
-    return float(_MAD_TO_STD * np.median(np.abs(values - np.median(values)))) if values.size else np.nan
-
-
-def _robust_variance(d) -> float:
-    return float(trimmed_variance(np.asarray(d, np.float64))) if np.size(d) else np.nan
 
 
 def _half_means(pixels_by_position) -> dict:
@@ -182,12 +172,12 @@ def is_dark_frame(mosaic, black_dn, span) -> bool:
         plane = plane[:h, :w]
         # noise, whatever the level: a trimmed second moment of neighbour differences (a MAD is 0
         # on integer data of ~0.5 DN noise, where most differences are 0)
-        pixel_sd = np.sqrt(_robust_variance(np.diff(plane, axis=1).ravel()) / 2)
+        pixel_sd = np.sqrt(trimmed_variance(np.diff(plane, axis=1).ravel().astype(np.float64)) / 2)
         blocks = plane.reshape(h // 8, 8, w // 8, 8).mean(axis=(1, 3))
         level = (np.median(plane) - black_dn[p]) / span[p]
         if not (abs(level) < DARK_FRAME_MAX and pixel_sd > 0):
             return False
-        if _robust_sd(blocks) > STRUCTURE_RATIO * pixel_sd / 8:
+        if mad_sd(blocks) > STRUCTURE_RATIO * pixel_sd / 8:
             return False
         if np.ptp(np.percentile(blocks, [0.1, 99.9])) > 10 * STRUCTURE_RATIO * pixel_sd / 8:
             return False

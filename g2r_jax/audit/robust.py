@@ -1,10 +1,10 @@
-"""Robust variance of zero-mean differences, shared by the audit's statistics and its black-level
-evidence."""
+"""Robust spread estimates shared by the audit's statistics and its black-level evidence."""
 
 from __future__ import annotations
 
 import numpy as np
 
+MAD_TO_STD = 1.482602            # 1 / Phi^-1(3/4): MAD of a Gaussian -> its standard deviation
 KEEP = 0.9                       # share of the smallest squares kept
 CHI2_1_TRIMMED_MEAN = 0.6230155  # mean of the smallest 90 % of chi-square(1) draws: rescales to the variance
 
@@ -20,3 +20,9 @@ def trimmed_variance(d):
     squares = d * d
     keep = max(1, int(KEEP * squares.size))
     return np.partition(squares, keep - 1)[:keep].mean() / CHI2_1_TRIMMED_MEAN
+
+
+def mad_sd(values) -> float:
+    """Standard deviation of Gaussian samples from their median absolute deviation (NaN when empty)."""
+    values = np.asarray(values, np.float64).ravel()
+    return float(MAD_TO_STD * np.median(np.abs(values - np.median(values)))) if values.size else np.nan

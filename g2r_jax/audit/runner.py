@@ -167,12 +167,11 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         with ThreadPoolExecutor(max(1, min(MEASURED_WORKERS, len(items), _cores()))) as pool:
             measured_stats = list(pool.map(lambda f: statistics_of((f["item"], items[f["item"]]), pedestal),
                                            measured_stats))
-    originals = items
     units, groups = independent_files(measured_stats)
     for group in groups:
         say(f"photon transfer over a burst of {len(group)} frames")
         first = measured_stats[group[0]]
-        first["temporal"] = burst_noise([originals[measured_stats[i]["item"]] for i in group], first, profile,
+        first["temporal"] = burst_noise([items[measured_stats[i]["item"]] for i in group], first, profile,
                                         pedestal)
     items = [f["name"] for f in measured_stats]
     shapes = [f["shape"] for f in (units or measured_stats)]

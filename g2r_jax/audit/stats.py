@@ -14,11 +14,11 @@ import functools
 
 import numpy as np
 
+from g2r_jax.audit.robust import MAD_TO_STD as _MAD_TO_STD
 from g2r_jax.audit.robust import trimmed_variance as _robust_variance
 from g2r_jax.sensor.noise.estimation import to_normalised_planes
 
 
-_MAD_TO_STD = 1.482602   # 1 / Phi^-1(3/4): MAD of a Gaussian -> its standard deviation
 NLF_EDGES = np.array([-0.02, 0.01, 0.03, 0.06, 0.12, 0.25, 0.45, 0.7, 0.92])
 RINGS = 7
 

@@ -12,9 +12,9 @@ or batch size.
 
 from __future__ import annotations
 
+import collections
 import concurrent.futures as futures
 import dataclasses
-import json
 import os
 import zlib
 from pathlib import Path
@@ -26,7 +26,7 @@ import numpy as np
 from g2r_jax.io.atomic import OutputError, atomic_write_bytes
 from g2r_jax.io.dng_info import DngError, DngInfo
 from g2r_jax.io.image_headers import DEFAULT_MAX_PIXELS
-from g2r_jax.io.output_folder import OutputFolder
+from g2r_jax.io.output_folder import MANIFEST_NAME, OutputFolder, manifest_bytes
 from g2r_jax.batch.program_store import stored_program
 from g2r_jax.pipeline import unprocess_batch
 from g2r_jax.sensor.effects import changes_nothing
@@ -212,6 +212,16 @@ def output_names(inputs) -> list[str]:
     return [Path(os.path.relpath(os.path.abspath(p), root)).with_suffix("").as_posix() for p in inputs]
 
 
+def colliding_names(names) -> set[str]:
+    """Output names claimed by more than one input (same name, another extension)."""
+    return {name for name, count in collections.Counter(names).items() if count > 1}
+
+
+def collision_error(path, name: str) -> DngError:
+    return DngError(path, f"another input would also be written to {name}.dng (same name, another extension); "
+                          "rename one")
+
+
 def _manifest_record(path, output, metadata, seed):
     return {"input": str(path), "output": str(output),
             "neutral": [round(float(v), 8) for v in np.asarray(metadata["neutral"])],
@@ -275,10 +285,7 @@ def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: 
     report = (lambda line: (errors.append(line), on_error and on_error(line)))
 
     names = output_names(inputs) if names is None else [str(n) for n in names]
-    claimed = {}
-    for name in names:
-        claimed[name] = claimed.get(name, 0) + 1
-    duplicates = {name for name, count in claimed.items() if count > 1}
+    duplicates = colliding_names(names)
 
     progress = None
     if options.progress:
@@ -376,8 +383,7 @@ def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: 
             path = inputs[index]
             try:
                 if names[index] in duplicates:
-                    raise DngError(path, f"another input would also be written to {names[index]}.dng "
-                                         f"(same name, another extension); rename one")
+                    raise collision_error(path, names[index])
                 image = loading.pop(index).result()
             except Exception as error:  # noqa: BLE001 - every per-file failure is reported, the batch goes on
                 loading.pop(index, None)
@@ -414,9 +420,9 @@ def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: 
 
 
 def write_manifest_file(out_dir, records) -> None:
-    """`out_dir/manifest.jsonl`: one JSON record per converted file, in input order."""
-    manifest = "".join(json.dumps(r) + "\n" for r in records)
-    atomic_write_bytes(Path(out_dir) / "manifest.jsonl", manifest.encode())
+    """`out_dir/manifest.jsonl`: one JSON record per converted file, in input order (written even
+    when empty, unlike `OutputFolder.rewrite`)."""
+    atomic_write_bytes(Path(out_dir) / MANIFEST_NAME, manifest_bytes(records))
 
 
 def _collect(future, inputs, records, report, progress):

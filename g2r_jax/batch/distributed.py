@@ -125,8 +125,8 @@ def convert_files_ray(inputs, profile_name, out_dir, *, neutrals=None, options=N
     **Returns:** `ConvertResult` with the records in input order.
     """
     ray = _require_ray()
-    from g2r_jax.batch.conversion import ConvertOptions, ConvertResult, output_names, write_manifest_file
-    from g2r_jax.io.dng_info import DngError
+    from g2r_jax.batch.conversion import (ConvertOptions, ConvertResult, colliding_names, collision_error,
+                                          output_names, write_manifest_file)
 
     options = options or ConvertOptions()
     chunk_options = dataclasses.replace(options, progress=False)
@@ -146,14 +146,11 @@ def convert_files_ray(inputs, profile_name, out_dir, *, neutrals=None, options=N
     # Output names and their collisions are a property of the whole run, not of a chunk: decided
     # here, as locally.
     names = output_names(given_inputs)
-    claimed = {}
-    for name in names:
-        claimed[name] = claimed.get(name, 0) + 1
+    duplicates = colliding_names(names)
     keep = []
     for index, path in enumerate(given_inputs):
-        if claimed[names[index]] > 1:
-            report(str(DngError(path, f"another input would also be written to {names[index]}.dng "
-                                      f"(same name, another extension); rename one")))
+        if names[index] in duplicates:
+            report(str(collision_error(path, names[index])))
         else:
             keep.append(index)
 

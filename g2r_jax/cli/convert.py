@@ -150,9 +150,9 @@ def body(args) -> int:
     else:   # inputs and --profile: checked while parsing (check_arguments)
         profile_name = args.profile
     profile = profile_module.load_profile(profile_name)   # validated before any input is read
-    if args.example and not args.quiet:
-        print(f"g2r-convert: example scene with profile {profile_name!r}"
-              f"{' (the default; --profile NAME picks another)' if not args.profile else ''}", file=sys.stderr)
+    if args.example:
+        say(f"example scene with profile {profile_name!r}"
+            f"{' (the default; --profile NAME picks another)' if not args.profile else ''}")
     if not args.no_noise and not (float(profile.noise.shot.max()) > 0 or float(profile.noise.read.max()) > 0):
         print(f"g2r-convert: warning: profile {shown(profile_name)} has no noise model (shot and read noise are 0): "
               "the DNGs will be noise-free; fit the noise with g2r-fit-profile (NoiseProfile tags, the pixels, or "
@@ -177,8 +177,8 @@ def body(args) -> int:
         if len(neutrals) < len(files):
             raise ValueError(f"{args.illuminants}: {len(neutrals)} illuminants for {len(files)} inputs")
     options = ConvertOptions(seed=args.seed, iso=args.iso, noise=not args.no_noise, effects=not args.no_effects,
-                             transfer=args.transfer, recipe=args.recipe, colour=args.colour, batch_size=max(1, args.batch_size),
-                             workers=max(1, args.workers), crop_odd=args.crop_odd, lens_shading=args.lens_shading,
+                             transfer=args.transfer, recipe=args.recipe, colour=args.colour, batch_size=args.batch_size,
+                             workers=args.workers, crop_odd=args.crop_odd, lens_shading=args.lens_shading,
                              compression=args.compression,
                              max_pixels=int(args.max_megapixels * 1e6) if args.max_megapixels > 0 else None,
                              max_batch_pixels=int(args.max_batch_megapixels * 1e6) if args.max_batch_megapixels > 0 else None,

@@ -202,7 +202,7 @@ def body(args) -> int:
             (k, profile), = fits.items()
             line = one_line(f"{infos[k].path}: dropped, no valid profile with this file ({error_message(error)})")
             failures.append(line)
-            print(f"g2r-fit-profile: error: {one_line(line)}", file=sys.stderr)
+            print(f"g2r-fit-profile: error: {line}", file=sys.stderr)
             infos = infos[:k] + infos[k + 1:]
     if profile is None:   # several bad files: keep those that give a valid profile on their own
         survivors = []
@@ -213,7 +213,7 @@ def body(args) -> int:
             except Exception as single:  # noqa: BLE001
                 line = one_line(f"{info.path}: dropped, no valid profile with this file ({error_message(single)})")
                 failures.append(line)
-                print(f"g2r-fit-profile: error: {one_line(line)}", file=sys.stderr)
+                print(f"g2r-fit-profile: error: {line}", file=sys.stderr)
         if not survivors or len(survivors) == len(infos):
             raise ValueError(f"no valid profile from {len(infos)} file(s): {error_message(first_error)}")
         infos = survivors

@@ -85,7 +85,7 @@ class StopOnSignal:
         """Remove the temporaries, print one line, exit with status 130 (no interpreter shutdown)."""
         locked = atomic.COMMIT_LOCK.acquire(timeout=LOCK_WAIT_SECONDS)
         removed = 0
-        for temporary in list(atomic._LIVE):
+        for temporary in list(atomic.LIVE_TEMPORARIES):
             try:
                 os.unlink(temporary)
                 removed += 1

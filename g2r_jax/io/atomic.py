@@ -1,6 +1,6 @@
 """Atomic file writing: a temporary sibling, fsync, then rename, so no partial output is left.
 
-Every temporary file being written is registered (`live_temporaries`), so that a command stopped
+Every temporary file being written is registered (`LIVE_TEMPORARIES`), so that a command stopped
 by a signal removes them before it exits (`g2r_jax.cli.interruption`), and a temporary is created
 and a finished file renamed under one lock (`COMMIT_LOCK`), which the stopping command takes
 first: an output is either complete under its name or absent. Failures are reported with the
@@ -17,12 +17,12 @@ from pathlib import Path
 
 from g2r_jax.io.dng_info import DngError
 
-__all__ = ["OutputError", "atomic_write_bytes", "output_problem", "live_temporaries", "COMMIT_LOCK",
+__all__ = ["OutputError", "atomic_write_bytes", "output_problem", "LIVE_TEMPORARIES", "COMMIT_LOCK",
            "TEMPORARY_SUFFIX", "is_temporary_name"]
 
 TEMPORARY_SUFFIX = ".tmp"
 COMMIT_LOCK = threading.RLock()      # held while a temporary is created or renamed into place
-_LIVE: set = set()
+LIVE_TEMPORARIES: set = set()
 
 _PROBLEMS = {
     errno.ENOSPC: "no space left on the disk",
@@ -53,12 +53,6 @@ def output_problem(error: BaseException) -> str:
     return f"{type(error).__name__}"
 
 
-def live_temporaries() -> list:
-    """Paths of the temporary files being written now (take `COMMIT_LOCK` to freeze the set)."""
-    with COMMIT_LOCK:
-        return sorted(_LIVE)
-
-
 def is_temporary_name(name: str) -> bool:
     """True for a name `atomic_write_bytes` gives its temporaries: '.<name>.<random>.tmp'."""
     return name.startswith(".") and name.endswith(TEMPORARY_SUFFIX) and name.count(".") >= 3
@@ -81,7 +75,7 @@ def atomic_write_bytes(path, data, *, after_rename=None) -> None:
         with COMMIT_LOCK:
             descriptor, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX,
                                                      dir=path.parent)
-            _LIVE.add(temporary)
+            LIVE_TEMPORARIES.add(temporary)
     except OSError as error:
         raise OutputError(path, f"cannot write: {output_problem(error)}") from None
     try:
@@ -95,13 +89,13 @@ def atomic_write_bytes(path, data, *, after_rename=None) -> None:
         os.chmod(temporary, 0o644)
         with COMMIT_LOCK:
             os.replace(temporary, path)
-            _LIVE.discard(temporary)
+            LIVE_TEMPORARIES.discard(temporary)
             if after_rename is not None:
                 after_rename()
     except OSError as error:
         raise OutputError(path, f"cannot write: {output_problem(error)}") from None
     finally:
         with COMMIT_LOCK:
-            if temporary in _LIVE:
-                _LIVE.discard(temporary)
+            if temporary in LIVE_TEMPORARIES:
+                LIVE_TEMPORARIES.discard(temporary)
                 Path(temporary).unlink(missing_ok=True)

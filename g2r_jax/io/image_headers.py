@@ -3,7 +3,7 @@ pixel budget, and for PNG whether the compressed data really holds that many row
 
 A header can claim any size: a 312-byte PNG may declare 8000x8000 pixels and carry ten rows.
 Decoders allocate for the claim and fill the missing rows with zeros, silently. Here the claim is
-read without decoding (`claimed_size`), refused above the budget (`check_pixel_budget`), and a
+read without decoding, refused above the budget (`check_pixel_budget`), and a
 PNG's zlib stream is inflated in small pieces, counting bytes without keeping them
 (`check_png_complete`), so memory stays bounded by the file's real data, not by its claim; a
 JPEG must at least be large enough to code one bit per 8x8 block (`check_jpeg_complete`).
@@ -19,7 +19,7 @@ from pathlib import Path
 
 from g2r_jax.io.dng_info import DngError
 
-__all__ = ["DEFAULT_MAX_PIXELS", "PNG_SIGNATURE", "claimed_size", "check_pixel_budget", "check_png_complete",
+__all__ = ["DEFAULT_MAX_PIXELS", "PNG_SIGNATURE", "check_pixel_budget", "check_png_complete",
            "check_jpeg_complete"]
 
 DEFAULT_MAX_PIXELS = 100_000_000      # 100 megapixels per image: 1.2 GB as float32 RGB
@@ -67,25 +67,6 @@ def _jpeg_size(path: Path, handle) -> tuple:
             sampling = [(frame[7 + 3 * c] >> 4, frame[7 + 3 * c] & 15) for c in range(frame[5])]
             return width, height, marker[1], sampling
         handle.seek(size, 1)
-
-
-def claimed_size(path) -> tuple | None:
-    """(width, height) that the file's header claims, read without decoding pixels; None for a
-    format read by a decoder that checks its own data (TIFF, EXR: see `images`).
-
-    **Arguments:** `path`: a PNG or JPEG file.
-
-    **Returns:** (width, height), or None for other extensions. Raises `DngError` for a header
-    that cannot be parsed.
-    """
-    path = Path(path)
-    suffix = path.suffix.lower()
-    with open(path, "rb") as handle:
-        if suffix == ".png":
-            return _png_header(path, handle)[:2]
-        if suffix in (".jpg", ".jpeg"):
-            return _jpeg_size(path, handle)[:2]
-    return None
 
 
 def _jpeg_minimum_bytes(width: int, height: int, sampling) -> int:

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from g2r_jax.io.atomic import COMMIT_LOCK, OutputError, atomic_write_bytes, is_temporary_name, output_problem
 
-__all__ = ["OutputFolder", "check_output_folder", "open_folders", "MANIFEST_NAME", "LOCK_NAME"]
+__all__ = ["OutputFolder", "check_output_folder", "open_folders", "manifest_bytes", "MANIFEST_NAME", "LOCK_NAME"]
 
 MANIFEST_NAME = "manifest.jsonl"
 LOCK_NAME = ".g2r.lock"
@@ -46,6 +46,11 @@ def check_output_folder(path) -> Path:
         raise OutputError(path, "the output folder is not writable")
     return path
 
+
+
+def manifest_bytes(records) -> bytes:
+    """The manifest's content: one JSON record a line."""
+    return "".join(json.dumps(r) + "\n" for r in records).encode()
 
 class OutputFolder:
     """An opened output folder: locked, cleaned, its manifest rebuilt.
@@ -157,7 +162,7 @@ class OutputFolder:
             with COMMIT_LOCK:
                 self.manifest.unlink(missing_ok=True)
             return
-        atomic_write_bytes(self.manifest, "".join(json.dumps(r) + "\n" for r in self.records).encode())
+        atomic_write_bytes(self.manifest, manifest_bytes(self.records))
 
     def append(self, record: dict, output: Path) -> None:
         """Append one record; called under the commit lock right after `output` is renamed into

@@ -57,13 +57,6 @@ def _levels(info):
     return black, float(info.white_level)
 
 
-def measure_from_pixels(info, *, n_bootstrap: int = 50):
-    """(shot (4,), read (4,)) per tile position measured from one DNG's own pixels, or None with
-    the reason (pixels not decodable, too few flat regions)."""
-    found, problems = measure_pooled([info], n_bootstrap=n_bootstrap)
-    return (found, "") if found is not None else (None, problems[0][1] if problems else "no pixels")
-
-
 def measure_pooled(infos, *, n_bootstrap: int = 50):
     """(shot (4,), read (4,)) per tile position measured from the pixels of several DNGs of one
     ISO and one black/white level, their flat blocks pooled into one noise level function (the
