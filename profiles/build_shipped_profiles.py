@@ -19,13 +19,14 @@ from pathlib import Path
 import numpy as np
 
 from g2r_jax.cli.fit_profile import read_noise_table
-from g2r_jax.illuminants.distributions import fit_locus, neutral_to_chromaticity
+from g2r_jax.illuminants.distributions import neutral_to_chromaticity
 from g2r_jax.io.dng_info import DngInfo
 from g2r_jax.io.dng_read import read_dng_info
 from g2r_jax.profile.fitting import fit_profile
 from g2r_jax.profile.provenance import with_provenance
 from g2r_jax.profile.schema import parse_cfa, replace, save_profile
 from g2r_jax.sensor import ExposureModel, NoiseModel
+from g2r_jax.sensor.noise.estimation import quantisation_variance
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE.parent / ".." / "shared" / "data"
@@ -134,7 +135,7 @@ def raw_noise(rows: np.ndarray, camera: dict) -> dict:
     if not np.any(measured):
         raise ValueError(f"{camera['model']}: no positive read term at any ISO")
     input_referred = float(np.median(b[measured] / a[measured] ** 2))
-    rounding = 1.0 / 12.0 / span0 ** 2
+    rounding = quantisation_variance(camera["black"], camera["white"])[0]
     measured_read = DARKTABLE_TO_RAW_VARIANCE * b * ratio ** 2 - rounding
     estimated_read = DARKTABLE_TO_RAW_VARIANCE * input_referred * (a * ratio) ** 2
     read = np.where(measured, measured_read, estimated_read)
@@ -193,15 +194,18 @@ def exposure_spread() -> tuple[ExposureModel, str]:
     return ExposureModel(log2_mean=np.float32(0.0), log2_std=np.float32(spread)), text
 
 
-def illuminants_without_measurements(colour_model):
-    """The illuminant model of a camera with no measured scene illuminants, and its provenance text:
-    the cross-camera prior of real scene illuminants (`g2r_jax.illuminants.prior`, day preset) mapped
-    through the camera's own colour model. It beats the supplement's A-D65 locus (S3) on every camera
-    held out of its fit (docs/pages/validation/illuminant_prior.md)."""
-    from g2r_jax.illuminants.prior import DEFAULT_PRESET, load_prior, model_for_camera
+WITHOUT_MEASURED_ILLUMINANTS = "prior"   # fit_profile's kind for cameras without measured scene illuminants
+
+
+def prior_provenance() -> str:
+    """Provenance of the illuminants of a camera with no measured scene illuminants: the
+    cross-camera prior of real scene illuminants (`g2r_jax.illuminants.prior`, day preset) mapped
+    through the camera's own colour model. It beats the supplement's A-D65 locus (S3) on every
+    camera held out of its fit (docs/pages/validation/illuminant_prior.md)."""
+    from g2r_jax.illuminants.prior import DEFAULT_PRESET, load_prior
 
     source = load_prior().source
-    return model_for_camera(colour_model, DEFAULT_PRESET), (
+    return (
         f"cross-camera prior of measured scene illuminants ({DEFAULT_PRESET} preset: daylight and artificial light "
         f"1:1), mapped through the camera's own colour model: no measured scene illuminants for this camera. "
         f"Prior {source}.")
@@ -242,9 +246,9 @@ def dslr_profiles(cameras: dict, noise_db: dict, exposure: tuple) -> None:
             info = nus_info(name, cameras[name], camera)
             colour = (f"Adobe DNG Converter ColorMatrix pair (Standard light A, D65) of the NUS 8-camera dataset. "
                       f"As released in the {PAPERS} (../shared/data/cameras/color_matrices.json).")
-            profile = fit_profile([info], name=name, illuminant_model="locus", noise=noise_model(noise))
-            model, illuminants = illuminants_without_measurements(profile.colour)
-            profile = replace(profile, illuminants=model)
+            profile = fit_profile([info], name=name, illuminant_model=WITHOUT_MEASURED_ILLUMINANTS,
+                                  noise=noise_model(noise))
+            illuminants = prior_provenance()
         else:
             info, colour = gehler_shi_info(camera)
             profile = fit_profile([info], name=name, illuminant_model="mixture", noise=noise_model(noise),
@@ -287,11 +291,11 @@ def s20fe_night(cameras: dict) -> None:
 
 def gopro(exposure: tuple) -> None:
     path = DATA / "dng" / "gopro_hero6_GOPR0024.dng"
-    profile = fit_profile([read_dng_info(path)], name="gopro_hero6", illuminant_model="locus")
-    model, illuminants = illuminants_without_measurements(profile.colour)
+    profile = fit_profile([read_dng_info(path)], name="gopro_hero6", illuminant_model=WITHOUT_MEASURED_ILLUMINANTS)
+    illuminants = prior_provenance()
     source = "the real GoPro HERO6 Black DNG gopro_hero6_GOPR0024.dng (gopro/gpr repository, Apache-2.0 or MIT)"
     profile = with_provenance(
-        replace(profile, illuminants=model, exposure=exposure[0]),
+        replace(profile, exposure=exposure[0]),
         colour=f"ColorMatrix pair (Tungsten, D50) of a real GoPro HERO6 Black DNG. Tags of {source}.",
         levels=f"CFA, black and white levels of a real GoPro HERO6 Black DNG. Tags of {source}.",
         noise=f"NoiseProfile tag of a real GoPro HERO6 Black DNG (one ISO: 100). Tag of {source}.",

@@ -59,11 +59,6 @@ def mired_duv_to_xy_numpy(point) -> np.ndarray:
     return _to_xy(np.asarray(point, np.float64), np)
 
 
-def planckian_uv(cct):
-    """CIE 1960 uv (..., 2) of a blackbody at `cct` kelvin (Krystek 1985, 1000-15000 K), numpy."""
-    return _locus_and_normal(1e6 / np.asarray(cct, np.float64), np)[0]
-
-
 def xy_to_mired_duv(xy) -> np.ndarray:
     """CIE xy (N, 2) -> (mired, Duv x 1000) (N, 2), numpy: the nearest point of the same locus,
     found on a 0.1-mired grid over 40-1000 mired and refined three times by a factor of 10

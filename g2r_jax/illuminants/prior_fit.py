@@ -20,9 +20,7 @@ Regenerate the shipped file: `python -m g2r_jax.illuminants.prior_fit ../shared/
 from __future__ import annotations
 
 import json
-import os
 import sys
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,8 +28,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from g2r_jax.colour import dng_model as _dng
+from g2r_jax.illuminants.distributions import _gaussian_log_density
 from g2r_jax.illuminants.mired_duv import xy_to_mired_duv
 from g2r_jax.illuminants.prior import PRIOR_FILE, IlluminantPrior
+from g2r_jax.io.atomic import atomic_write_bytes
 from g2r_jax.runtime.x64 import enable_x64
 
 DAYLIGHT_MIRED = 1e6 / 4500.0   # day-set lights bluer than 4500 K are 'daylight'
@@ -94,12 +94,6 @@ def set_mired_duv(measured: MeasuredSet) -> np.ndarray:
     return xy_to_mired_duv(np.asarray(xy))
 
 
-def _log_gaussian(points, mean, covariance):
-    difference = points - mean
-    mahalanobis = np.einsum("ni,ij,nj->n", difference, np.linalg.inv(covariance), difference)
-    return -0.5 * (mahalanobis + np.log(np.linalg.det(covariance)) + 2 * np.log(2 * np.pi))
-
-
 def _weighted_em(points, weights, k, rng, iterations=500):
     """One EM run of a k-component mixture on weighted points (weights sum to 1)."""
     means = points[rng.choice(len(points), k, replace=False, p=weights)]
@@ -107,7 +101,7 @@ def _weighted_em(points, weights, k, rng, iterations=500):
     shares = np.full(k, 1.0 / k)
     previous = -np.inf
     for _ in range(iterations):
-        log_p = np.stack([np.log(shares[j]) + _log_gaussian(points, means[j], covariances[j]) for j in range(k)], 1)
+        log_p = np.stack([np.log(shares[j]) + _gaussian_log_density(points, means[j], covariances[j]) for j in range(k)], 1)
         total = np.logaddexp.reduce(log_p, axis=1)
         responsibility = np.exp(log_p - total[:, None]) * weights[:, None]
         counts = responsibility.sum(0) + 1e-300
@@ -184,13 +178,8 @@ def prior_to_dict(prior: IlluminantPrior) -> dict:
 
 
 def write_prior(prior: IlluminantPrior, path) -> None:
-    """Write the prior's JSON atomically (temporary file in the same folder, then rename)."""
-    path = Path(path)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    with os.fdopen(handle, "w") as stream:
-        json.dump(prior_to_dict(prior), stream, indent=1)
-        stream.write("\n")
-    os.replace(temporary, path)
+    """Write the prior's JSON atomically (`g2r_jax.io.atomic`)."""
+    atomic_write_bytes(Path(path), (json.dumps(prior_to_dict(prior), indent=1) + "\n").encode())
 
 
 def main(argv=None) -> int:

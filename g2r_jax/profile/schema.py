@@ -27,7 +27,7 @@ from g2r_jax.colour.spectral import model as _spectral_model
 from g2r_jax.profile import provenance as _provenance
 from g2r_jax.profile.checks import ProfileError, check_document
 from g2r_jax.profile.shipped import (  # re-exported: the shipped profiles' place and names
-    SHIPPED_PROFILES_DIR, UnknownProfile, _shipped_profiles_dir, profile_path, shipped_profiles)
+    SHIPPED_PROFILES_DIR, UnknownProfile, profile_path, shipped_profiles)
 
 SCHEMA_NAME = "g2r_jax.sensor_profile"
 SCHEMA_VERSION = 1
