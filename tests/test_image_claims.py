@@ -150,3 +150,20 @@ def test_converting_the_lying_png_is_refused_by_name_in_bounded_memory(tmp_path)
     assert "ecompression" not in stderr
     assert not list((tmp_path / "out").glob("*.dng"))
     assert peak_gib < 1.0, f"peak resident memory {peak_gib:.2f} GiB"
+
+
+def test_a_png_whose_data_is_plausible_but_short_is_refused_with_its_rows(tmp_path):
+    """Below the plausible compression ratio the fast decoder runs without counting first: it must
+    refuse the missing rows too, and the message must still say how many there are."""
+    from g2r_jax.io import images
+
+    noise = np.random.default_rng(4).integers(0, 256, (150, 300 * 3), dtype=np.uint8)
+    raw = b"".join(b"\0" + row.tobytes() for row in noise)
+    header = struct.pack(">IIBBBBB", 300, 200, 8, 2, 0, 0, 0)
+    path = tmp_path / "short.png"
+    path.write_bytes(image_headers.PNG_SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"IDAT", zlib.compress(raw))
+                     + _chunk(b"IEND", b""))
+    _, _, _, _, claimed, present = image_headers.png_claim(path, path.read_bytes())
+    assert claimed < images.PLAUSIBLE_PNG_RATIO * present          # so the counting route is not taken first
+    with pytest.raises(DngError, match=r"short\.png: truncated: the image data holds 150 of the 200 rows"):
+        read_image_uint8(path)

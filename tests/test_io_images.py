@@ -208,3 +208,35 @@ def test_list_inputs(tmp_path):
         list_inputs([tmp_path / "nope"], [".png"])
     with pytest.raises(DngError, match="unsupported file type"):
         list_inputs([folder / "notes.txt"], [".png"])
+
+
+@pytest.mark.parametrize("mode", ["1", "L", "P", "RGB", "RGBA", "LA", "grey4", "palette-transparent"])
+def test_the_fast_png_decoder_gives_pillows_pixels(tmp_path, mode):
+    """8-bit PNGs go through libspng, others through Pillow: the pixels must be the same."""
+    from g2r_jax.io import images
+
+    rgb = U8[:, :, :3]
+    path = tmp_path / "a.png"
+    if mode == "grey4":
+        Image.fromarray(rgb[:, :, 0] // 17 * 17).save(path, bits=4)
+    elif mode == "palette-transparent":
+        Image.fromarray(rgb).convert("P").save(path, transparency=3)
+    else:
+        Image.fromarray(rgb).convert(mode).save(path)
+    fast, bits = images._read_integer(path, ".png")
+    reference, reference_bits = images._read_pillow(path)
+    assert bits == reference_bits == 8 and fast.dtype == reference.dtype == np.uint8
+    np.testing.assert_array_equal(fast, reference)
+
+
+def test_a_png_with_more_data_than_rows_decodes_silently(tmp_path, capfd):
+    """libpng would print 'Too much image data' on stderr; nothing of a library reaches the user."""
+    rows = b"".join(b"\0" + U8[i % 23, :, :3].tobytes() for i in range(30))
+    header = struct.pack(">IIBBBBB", 37, 23, 8, 2, 0, 0, 0)
+    chunk = lambda kind, data: struct.pack(">I", len(data)) + kind + data + struct.pack(
+        ">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+    path = tmp_path / "long.png"
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(rows))
+                     + chunk(b"IEND", b""))
+    np.testing.assert_array_equal(read_image_uint8(path), U8[:, :, :3])
+    assert capfd.readouterr().err == ""

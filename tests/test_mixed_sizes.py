@@ -66,3 +66,31 @@ def test_a_file_alone_and_in_a_mixed_folder_gives_the_same_bytes(tmp_path):
         assert alone.ok
         assert (tmp_path / f"out_{path.stem}" / f"{path.stem}.dng").read_bytes() == \
             (tmp_path / "out_mixed" / f"{path.stem}.dng").read_bytes()
+
+
+def test_fewer_files_than_the_batch_size_are_not_padded_to_a_full_batch(tmp_path, monkeypatch):
+    """One file is converted in a batch of one (a batch of four would compute four frames), and its
+    bytes are those of the same file converted among others."""
+    from PIL import Image
+
+    from g2r_jax.batch import conversion
+
+    calls = []
+    original = conversion._batched_unprocess
+
+    def recording(*args, **kwargs):
+        program = original(*args, **kwargs)
+        return lambda keys, images, *rest: (calls.append(images.shape[0]), program(keys, images, *rest))[1]
+
+    monkeypatch.setattr(conversion, "_batched_unprocess", recording)
+    folder = tmp_path / "in"
+    folder.mkdir()
+    rng = np.random.default_rng(5)
+    for name in ("a", "b", "c", "d", "e"):
+        Image.fromarray(rng.integers(0, 256, (16, 24, 3), dtype=np.uint8)).save(folder / f"{name}.png")
+    profile = pm.load_profile("gopro_hero6")
+    convert_files([folder / "c.png"], profile, tmp_path / "alone", options=ConvertOptions(progress=False))
+    assert calls == [1]
+    convert_files(sorted(folder.iterdir()), profile, tmp_path / "all", options=ConvertOptions(progress=False))
+    assert calls[1:] == [4, 4]
+    assert (tmp_path / "alone" / "c.dng").read_bytes() == (tmp_path / "all" / "c.dng").read_bytes()

@@ -100,3 +100,21 @@ def test_converted_bytes_are_the_same_with_a_stored_program(folder, tmp_path, mo
         outputs.append((tmp_path / f"out{run}" / "frame.dng").read_bytes())
     assert outputs[0] == outputs[1] == outputs[2]
     assert len(list(folder.glob("*.bin"))) == 1
+
+
+def test_a_prepared_program_runs_without_tracing_again(folder):
+    """`prepare` (shapes only) compiles ahead, on a thread while files decode: the call that follows
+    neither traces nor exports, and gives the plain results."""
+    traced = []
+
+    def counted(x, pair):
+        traced.append(1)
+        return function(x, pair)
+
+    program = program_store.stored_program("f", jax.jit(counted))
+    x, pair = arguments()
+    program.prepare(jax.ShapeDtypeStruct(x.shape, x.dtype), pair)
+    assert len(traced) == 1 and len(list(folder.glob("*.bin"))) == 1
+    result = program(x, pair)
+    assert len(traced) == 1
+    np.testing.assert_array_equal(result["sum"], jax.jit(function)(x, pair)["sum"])

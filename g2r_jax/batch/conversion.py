@@ -155,6 +155,32 @@ def _probe_size(path: Path):
         return None
 
 
+def _predicted_group(path: Path, transfer: str, buckets):
+    """The batch group (bucket, dtype, transfer) `path` will fall in once decoded, read from its
+    header; None when that is not certain before decoding (TIFF, unreadable headers)."""
+    from g2r_jax.io.image_headers import PNG_SIGNATURE
+
+    size, suffix = _probe_size(path), path.suffix.lower()
+    if size is None:
+        return None
+    if suffix == ".png":
+        try:
+            with open(path, "rb") as handle:
+                head = handle.read(25)
+        except OSError:
+            return None
+        if head[:8] != PNG_SIGNATURE or len(head) < 25:
+            return None
+        dtype = np.dtype(np.uint8 if head[24] <= 8 else np.float32)   # IHDR bit depth: 16 bits decode as float
+    elif suffix in (".jpg", ".jpeg"):
+        dtype = np.dtype(np.uint8)
+    elif suffix == ".exr":
+        dtype = np.dtype(np.float32)
+    else:
+        return None
+    return bucket_for((size[0] - size[0] % 2, size[1] - size[1] % 2), buckets), dtype.str, _transfer_for(path, transfer)
+
+
 def plan_buckets(sizes):
     """Padded shapes for a set of (h, w): the largest sizes first, each reusing an existing
     bucket that holds it at most `MAX_PADDING_FACTOR` times its area, else opening one rounded
@@ -332,6 +358,7 @@ def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: 
         sizes = [size for size in map(_probe_size, inputs) if size] if bucketing else []
         buckets = plan_buckets([(h - h % 2, w - w % 2) for h, w in sizes])
         pending = {}   # batch group (bucket, dtype, transfer) -> [(index, image)] waiting for partners
+        preparing = []  # the ahead-of-time compilation of the first group, awaited before the first call
         in_flight = []  # batches dispatched to the device, handed to the writers one batch later
         next_to_load = len(loading)
 
@@ -349,15 +376,31 @@ def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: 
             return shape, image.dtype.str, _transfer_for(path, options.transfer)
 
         def capacity(shape):
-            """Images per compiled call of this shape: the batch size, fewer above the batch pixel budget."""
+            """Images per compiled call of this shape: the batch size, fewer above the batch pixel
+            budget or when there are fewer inputs (one file is not padded to a batch of four)."""
+            size = min(options.batch_size, len(inputs))
             if options.max_batch_pixels is None:
-                return options.batch_size
-            return max(1, min(options.batch_size, options.max_batch_pixels // max(1, shape[0] * shape[1])))
+                return max(1, size)
+            return max(1, min(size, options.max_batch_pixels // max(1, shape[0] * shape[1])))
+
+        def prepare(group):
+            """Compile (or load) the program of a batch group without running it."""
+            shape, dtype, transfer = group
+            size, spec = capacity(shape), jax.ShapeDtypeStruct
+            key = jax.eval_shape(lambda: file_key(0, ""))
+            arguments = (spec((size,) + key.shape, key.dtype), spec((size,) + tuple(shape) + (3,), np.dtype(dtype)),
+                         profile, spec((size, 3), jnp.float32), spec((), jnp.float32), spec((), jnp.float32),
+                         spec((size, 2), jnp.int32))
+            _batched_unprocess(options, transfer, neutrals is not None, render_effects).prepare(*arguments)
 
         def flush(group):
             batch = pending.pop(group, [])
             if not batch:
                 return
+            while preparing:             # its failure, if any, shows again in the call below
+                ahead = preparing.pop()
+                if ahead is not None:
+                    ahead.exception()
             shape, _, transfer = group
             count, size = len(batch), capacity(shape)
             padded = batch + [batch[-1]] * (size - count) if count < size else batch
@@ -379,6 +422,10 @@ def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: 
             if len(in_flight) > 1:
                 hand_over(*in_flight.pop(0))
 
+        # the first file's program is compiled (or loaded) on a thread while the first files are decoded
+        first = _predicted_group(inputs[0], options.transfer, buckets) if bucketing and inputs else None
+        preparer = futures.ThreadPoolExecutor(1) if first else None
+        preparing.append(preparer.submit(prepare, first) if first else None)
         for index in range(len(inputs)):
             path = inputs[index]
             try:
@@ -409,6 +456,8 @@ def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: 
             hand_over(*in_flight.pop(0))
         for done in writing:
             _collect(done, inputs, records, report, progress)
+        if preparer is not None:
+            preparer.shutdown(wait=False)
     if progress:
         progress.close()
     ordered = [records[i] for i in sorted(records)]

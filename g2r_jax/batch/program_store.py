@@ -87,22 +87,38 @@ def stored_program(name: str, jitted):
     **Arguments:** `name`: what distinguishes this function from others of the same arguments
     (e.g. its option set); `jitted`: the function.
 
-    **Returns:** a function with `jitted`'s signature and results.
+    **Returns:** a function with `jitted`'s signature and results, and a `prepare` attribute
+    that compiles it ahead for given argument shapes.
     """
     programs = {}
 
-    def call(*args):
+    def program_for(args):
+        """(the stored program or None, the flat leaves); None, None when the store is off."""
         folder = store_folder()
         if folder is None:
-            return jitted(*args)
+            return None, None
         leaves, treedef = jax.tree_util.tree_flatten(args)
-        leaves = [jax.numpy.asarray(leaf) for leaf in leaves]
+        leaves = [leaf if isinstance(leaf, jax.ShapeDtypeStruct) else jax.numpy.asarray(leaf) for leaf in leaves]
         key = _key(name, leaves, treedef)
         if key not in programs:
             programs[key] = _program(folder / f"{key}.bin", jitted, leaves, treedef)
-        program = programs[key]
+        return programs[key], leaves
+
+    def call(*args):
+        program, leaves = program_for(args)
         return program(*leaves) if program is not None else jitted(*args)
 
+    def prepare(*args):
+        """Load (or trace and store) and compile the program for arguments like these (arrays or
+        `jax.ShapeDtypeStruct`s) without running it, so that a later call only computes: to be
+        done on a thread while the inputs are being decoded."""
+        program, leaves = program_for(args)
+        if program is not None:
+            program.lower(*leaves).compile()
+        else:
+            jitted.lower(*args).compile()
+
+    call.prepare = prepare
     return call
 
 

@@ -27,7 +27,6 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 from jaxtyping import Array, Float
 
 from g2r_jax.colour import conversions as _colour
@@ -318,6 +317,8 @@ def _camera_neutral_to_xy_triple(neutral, model, max_steps, tolerance, throw):
     the simplex into itself continuously, so a root exists (Brouwer). Found by the specification's
     iteration from D50 (30 passes, as the SDK), then Newton's method (optimistix) from there; the
     result is accepted only when |g| <= tolerance, an a-posteriori check that it is the fixed point."""
+    import optimistix as optx   # here, not at the top: a stored conversion program is run without tracing
+
     dtype = neutral.dtype
     step = lambda _, xy: _xy_at_weights(illuminant_weights(xy, model), neutral, model)
     xy_plain = jax.lax.fori_loop(0, _SDK_PASSES, step, jnp.asarray(_colour.XY_D50, dtype))
@@ -354,6 +355,8 @@ def camera_neutral_to_xy(neutral, model: DngColourModel, *, max_steps: int = 200
 
     **Returns:** `(xy, converged)`.
     """
+    import optimistix as optx   # here, not at the top: a stored conversion program is run without tracing
+
     neutral = jnp.asarray(neutral)
     dtype = jnp.result_type(neutral, model.color_matrix)
     if tolerance is None:

@@ -20,7 +20,7 @@ from pathlib import Path
 from g2r_jax.io.dng_info import DngError
 
 __all__ = ["DEFAULT_MAX_PIXELS", "PNG_SIGNATURE", "check_pixel_budget", "check_png_complete",
-           "check_jpeg_complete"]
+           "check_jpeg_complete", "png_claim"]
 
 DEFAULT_MAX_PIXELS = 100_000_000      # 100 megapixels per image: 1.2 GB as float32 RGB
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -125,6 +125,24 @@ def _png_expected_bytes(width: int, height: int, depth: int, colour: int, interl
         if pass_width and pass_height:
             total += pass_height * (1 + (pass_width * bits + 7) // 8)
     return total
+
+
+def png_claim(path, data: bytes) -> tuple:
+    """(width, height, bit depth, colour type, filtered bytes the header claims, compressed IDAT
+    bytes present) of a PNG held in `data`, from its chunk headers only (no inflating); DngError
+    when it has no valid IHDR."""
+    import io
+
+    width, height, depth, colour, interlace = _png_header(Path(path), io.BytesIO(data))
+    present, at = 0, 8
+    while at + 8 <= len(data):
+        length, kind = struct.unpack(">I4s", data[at:at + 8])
+        if kind == b"IDAT":
+            present += min(length, len(data) - at - 8)
+        elif kind == b"IEND":
+            break
+        at += 12 + length
+    return width, height, depth, colour, _png_expected_bytes(width, height, depth, colour, interlace), present
 
 
 def check_png_complete(path, max_pixels: int | None = DEFAULT_MAX_PIXELS) -> tuple:
