@@ -196,3 +196,40 @@ def test_two_files_at_one_white_with_slightly_different_matrices_fit_a_valid_pro
     changed[1][0, 2] -= 0.0033
     other = dataclasses.replace(good, path=str(tmp_path / "mutated.dng"), color_matrices=tuple(changed))
     validate_profile(fit_profile([good, other]), tmp_path / "p.json")
+
+
+def test_fit_profile_removes_the_temporaries_a_killed_run_left_beside_its_output(tmp_path, capsys):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for name, neutral in (("a", [0.5, 1.0, 0.6]), ("b", [0.45, 1.0, 0.7])):
+        write_dng(folder / f"{name}.dng", random_mosaic(), make_info(as_shot_neutral=np.array(neutral)))
+    out = tmp_path / "out"
+    out.mkdir()
+    stale = [out / ".p.json.k2j4x9_a.tmp", out / ".p.json.zz81mq0e.tmp"]   # as a SIGKILLed run leaves them
+    for path in stale:
+        path.write_text('{"half": ')
+    other = out / ".q.json.k2j4x9_a.tmp"   # another output's temporary is not ours to remove
+    other.write_text("x")
+    assert fit_main([str(folder), "-o", str(out / "p.json")]) == 0
+    err = capsys.readouterr().err
+    assert "removed 2 temporary file(s) of p.json" in err
+    assert not any(path.exists() for path in stale) and other.exists()
+    pm.load_profile(out / "p.json")
+
+
+def test_profile_read_noise_that_a_dng_noise_profile_cannot_hold_is_refused(tmp_path):
+    doc = document()
+    doc["noise"]["read"][0][0] = 1.0   # plus the rounding variance: NoiseProfile O above 1
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(pm.ProfileError, match="noise.read.*rounding variance"):
+        pm.load_profile(path)
+
+
+def test_diagnose_names_a_bad_chart_file_once(tmp_path, capsys):
+    charts = tmp_path / "charts.csv"
+    charts.write_text("image,patch,r,g,b\nim0,1,abc,0.2,0.3\n")
+    assert diagnose_main(["--profile", "NikonD40", "--charts", str(charts), "--report", str(tmp_path / "r" / "R.json"),
+                          "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].count("charts.csv") == 1 and "row 2" in err[0], err

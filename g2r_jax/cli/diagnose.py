@@ -76,6 +76,7 @@ def check_arguments(args) -> str | None:
 def _run(args) -> int:
     from g2r_jax.audit import diagnose, loading, report
     from g2r_jax.profile.schema import load_profile, save_profile
+    from g2r_jax.colour.charts import ChartError
     from g2r_jax.io.dng_info import DngError
 
     report_path = Path(args.report)   # --alpha, --folds, inputs and output paths: checked while parsing
@@ -97,7 +98,7 @@ def _run(args) -> int:
         result = diagnose(profile, paths, scenes=args.scenes, seed=args.seed, alpha=args.alpha,
                           folds=args.folds, progress=say, on_error=report_bad_file,
                           charts=args.charts)
-    except DngError:
+    except (DngError, ChartError):   # already one line naming the file (and its row)
         raise
     except (ValueError, ArithmeticError) as error:   # a folder-wide problem: name the folder
         where = args.measured or args.charts

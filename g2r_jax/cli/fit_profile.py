@@ -224,10 +224,37 @@ def body(args) -> int:
             print(f"g2r-fit-profile: note: {one_line(note)}", file=sys.stderr)
     if args.sensitivities:
         profile = _with_sensitivities(profile, args.sensitivities, args.sensitivities_camera, chromaticities, infos)
+    removed = remove_stale_temporaries(args.output)
+    if removed:
+        print(f"g2r-fit-profile: note: removed {removed} temporary file(s) of {shown(args.output.name)} left by an "
+              "earlier run that was stopped", file=sys.stderr)
     save_profile(profile, args.output)
     print(f"g2r-fit-profile: wrote {args.output} ({profile.illuminants.kind} illuminant model, "
           f"{len(infos)} file(s); {len(failures)} failed)")
     return 1 if failures else 0
+
+
+def remove_stale_temporaries(output: Path) -> int:
+    """Remove the temporaries ('.<name>.<random>.tmp', see `g2r_jax.io.atomic`) of `output` that a
+    run killed while writing it left beside it; their count. A run stopped by SIGINT or SIGTERM
+    removes its own; SIGKILL cannot."""
+    import glob
+
+    from g2r_jax.io.atomic import is_temporary_name
+
+    removed = 0
+    try:
+        entries = list(output.parent.glob(f".{glob.escape(output.name)}.*"))
+    except OSError:
+        return 0
+    for entry in entries:
+        if is_temporary_name(entry.name) and entry.is_file():
+            try:
+                entry.unlink()
+                removed += 1
+            except OSError:
+                pass
+    return removed
 
 
 def main(argv=None) -> int:

@@ -19,9 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from g2r_jax.cli.text import shown
 from g2r_jax.io.dng_info import DngError
 
 CAMSPEC_WAVELENGTHS = np.arange(400.0, 721.0, 10.0)
+MAX_CAMERA = 80   # characters of a camera name read from the file (control characters shown as escapes)
 
 
 @dataclass(frozen=True)
@@ -112,7 +114,7 @@ def read_rawtoaces_json(path) -> Sensitivities:
         rows.append((wavelength, value))
     rows.sort(key=lambda row: row[0])
     names = [header.get(field, "") for field in ("manufacturer", "model")]
-    camera = " ".join(str(n) for n in names if isinstance(n, str) and n).strip()[:80] or path.stem
+    camera = shown(" ".join(str(n) for n in names if isinstance(n, str) and n).strip(), MAX_CAMERA) or path.stem
     values = _on_grid(path, [w for w, _ in rows], [v for _, v in rows])
     return Sensitivities(camera, values, f"rawtoaces JSON {path.name}")
 
@@ -137,8 +139,9 @@ def read_camspec(path, camera: str | None = None) -> dict[str, Sensitivities] | 
         rows = [numbers(l) for l in lines[index + 1:index + 4]]
         if numbers(lines[index]) is None and len(rows) == 3 and all(r is not None and len(r) == 33 for r in rows):
             name = lines[index]
-            cameras[name] = Sensitivities(name, _on_grid(path, CAMSPEC_WAVELENGTHS, np.stack(rows, 1)),
-                                          f"camspec {path.name}: {name}")
+            cameras[name] = Sensitivities(shown(name, MAX_CAMERA), _on_grid(path, CAMSPEC_WAVELENGTHS,
+                                                                             np.stack(rows, 1)),
+                                          f"camspec {path.name}: {shown(name, MAX_CAMERA)}")
             index += 4
         else:
             index += 1

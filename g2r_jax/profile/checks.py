@@ -172,7 +172,12 @@ def check_document(document, source: str = "<profile>") -> None:
     if noise:
         c.numbers(noise.get("iso"), "noise.iso", low=0, high=1e7, low_open=True)
         c.numbers(noise.get("shot"), "noise.shot", low=0, high=1)
-        c.numbers(noise.get("read"), "noise.read", low=0, high=1)
+        read = c.numbers(noise.get("read"), "noise.read", low=0, high=1)
+        if read.size and black.size:   # a DNG's NoiseProfile O (read plus the 1/12 DN^2 rounding) must stay <= 1
+            rounding = 1 / 12 / (white - float(np.max(black))) ** 2
+            if float(np.max(read)) + rounding > 1:
+                c.fail("noise.read", f"{float(np.max(read)):g} plus the rounding variance {rounding:.3g} exceeds 1 "
+                                     "(normalised units)")
         c.numbers(noise.get("iso_range"), "noise.iso_range", low=0, high=1e7, low_open=True, optional=True)
         level = c.obj(noise.get("level_function"), "noise.level_function")
         if level:   # the noise shape of g2r_jax.noise_shape; shapes are checked by the loader
