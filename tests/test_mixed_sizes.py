@@ -94,3 +94,13 @@ def test_fewer_files_than_the_batch_size_are_not_padded_to_a_full_batch(tmp_path
     convert_files(sorted(folder.iterdir()), profile, tmp_path / "all", options=ConvertOptions(progress=False))
     assert calls[1:] == [4, 4]
     assert (tmp_path / "alone" / "c.dng").read_bytes() == (tmp_path / "all" / "c.dng").read_bytes()
+
+
+def test_the_keys_of_a_batch_are_each_files_own_key():
+    """`file_keys` (one compiled program) gives `file_key` of every name, 64-bit seeds included."""
+    from g2r_jax.batch.conversion import file_key, file_keys
+
+    names = ["0001.png", "sceneA/0001.png", "é.exr", ""]
+    for seed in (0, 7, 2**40 + 3, -5):
+        expected = np.stack([np.asarray(file_key(seed, name)) for name in names])
+        np.testing.assert_array_equal(np.asarray(file_keys(seed, names)), expected)

@@ -29,6 +29,7 @@ from g2r_jax.io.image_headers import DEFAULT_MAX_PIXELS
 from g2r_jax.io.output_folder import MANIFEST_NAME, OutputFolder, manifest_bytes
 from g2r_jax.batch.program_store import stored_program
 from g2r_jax.pipeline import unprocess_batch
+from g2r_jax.runtime.host_arrays import device_array
 from g2r_jax.sensor.effects import changes_nothing
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr")
@@ -70,7 +71,22 @@ class ConvertResult:
 
 def file_key(seed: int, name: str):
     """PRNG key of one input: folded from the seed and a CRC-32 of the file name."""
-    return jax.random.fold_in(jax.random.PRNGKey(seed), zlib.crc32(name.encode()) & 0x7FFFFFFF)
+    return jax.random.fold_in(jax.random.PRNGKey(seed), _name_hash(name))
+
+
+def _name_hash(name: str) -> int:
+    return zlib.crc32(name.encode()) & 0x7FFFFFFF
+
+
+@jax.jit
+def _folded_keys(base, hashes):
+    return jax.vmap(lambda value: jax.random.fold_in(base, value))(hashes)
+
+
+def file_keys(seed: int, names) -> jax.Array:
+    """`file_key(seed, name)` of every name, stacked, folded in one compiled program (each eager
+    JAX operation costs a command's start-up a compilation-cache read)."""
+    return _folded_keys(jax.random.PRNGKey(seed), np.asarray([_name_hash(name) for name in names], np.uint32))
 
 
 def noise_profile_tag(shot, read, cfa_pattern) -> np.ndarray:
@@ -387,8 +403,8 @@ def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: 
             """Compile (or load) the program of a batch group without running it."""
             shape, dtype, transfer = group
             size, spec = capacity(shape), jax.ShapeDtypeStruct
-            key = jax.eval_shape(lambda: file_key(0, ""))
-            arguments = (spec((size,) + key.shape, key.dtype), spec((size,) + tuple(shape) + (3,), np.dtype(dtype)),
+            keys = jax.eval_shape(lambda: file_keys(0, [""] * size))
+            arguments = (keys, spec((size,) + tuple(shape) + (3,), np.dtype(dtype)),
                          profile, spec((size, 3), jnp.float32), spec((), jnp.float32), spec((), jnp.float32),
                          spec((size, 2), jnp.int32))
             _batched_unprocess(options, transfer, neutrals is not None, render_effects).prepare(*arguments)
@@ -404,18 +420,19 @@ def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: 
             shape, _, transfer = group
             count, size = len(batch), capacity(shape)
             padded = batch + [batch[-1]] * (size - count) if count < size else batch
-            keys = jnp.stack([file_key(options.seed, names[i] + inputs[i].suffix) for i, _ in padded])
+            # arrays made with numpy and copied (device_array): jnp constructors would each compile
+            keys = file_keys(options.seed, [names[i] + inputs[i].suffix for i, _ in padded])
             stacked = np.zeros((len(padded),) + tuple(shape) + padded[0][1].shape[2:], padded[0][1].dtype)
             for j, (_, image) in enumerate(padded):
                 stacked[j, :image.shape[0], :image.shape[1]] = image
-            images = jnp.asarray(stacked)
-            valid_shapes = jnp.asarray([image.shape[:2] for _, image in padded], jnp.int32)
+            images = device_array(stacked)
+            valid_shapes = device_array([image.shape[:2] for _, image in padded], np.int32)
             with_neutral = neutrals is not None
-            neutral_rows = (jnp.asarray(np.stack([neutrals[i] for i, _ in padded]), jnp.float32) if with_neutral
-                            else jnp.ones((len(padded), 3), jnp.float32))
-            iso = jnp.asarray(options.iso if options.iso is not None else 0.0, jnp.float32)
-            lens_gain = (jnp.asarray(lens_for(images.shape[1], images.shape[2])[0]) if options.lens_shading
-                         else jnp.ones((), jnp.float32))
+            neutral_rows = device_array(np.stack([neutrals[i] for i, _ in padded]) if with_neutral
+                                        else np.ones((len(padded), 3)), np.float32)
+            iso = device_array(options.iso if options.iso is not None else 0.0, np.float32)
+            lens_gain = device_array(lens_for(images.shape[1], images.shape[2])[0] if options.lens_shading
+                                     else 1.0, np.float32)
             mosaics, metadata = _batched_unprocess(options, transfer, with_neutral, render_effects)(
                 keys, images, profile, neutral_rows, iso, lens_gain, valid_shapes)
             in_flight.append((batch, mosaics, metadata))   # asynchronous: decoding goes on meanwhile
@@ -426,6 +443,8 @@ def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: 
         first = _predicted_group(inputs[0], options.transfer, buckets) if bucketing and inputs else None
         preparer = futures.ThreadPoolExecutor(1) if first else None
         preparing.append(preparer.submit(prepare, first) if first else None)
+        if first:     # the keys' programs are read from the compilation cache while the first file decodes
+            file_keys(options.seed, [""] * capacity(first[0]))
         for index in range(len(inputs)):
             path = inputs[index]
             try:

@@ -98,7 +98,7 @@ def stored_program(name: str, jitted):
         if folder is None:
             return None, None
         leaves, treedef = jax.tree_util.tree_flatten(args)
-        leaves = [leaf if isinstance(leaf, jax.ShapeDtypeStruct) else jax.numpy.asarray(leaf) for leaf in leaves]
+        leaves = [leaf if isinstance(leaf, (jax.ShapeDtypeStruct, jax.Array)) else jax.device_put(leaf) for leaf in leaves]
         key = _key(name, leaves, treedef)
         if key not in programs:
             programs[key] = _program(folder / f"{key}.bin", jitted, leaves, treedef)

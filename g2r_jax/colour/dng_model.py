@@ -30,6 +30,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from g2r_jax.colour import conversions as _colour
+from g2r_jax.runtime.host_arrays import device_array
 
 # Adobe DNG SDK 1.4, dng_camera_profile.cpp, IlluminantToTemperature: CCT (K) of each EXIF
 # LightSource code used as CalibrationIlluminant. (The SDK's own values, e.g. 2850 K for
@@ -197,13 +198,13 @@ class DngColourModel(eqx.Module):
         if n == 1:
             order = np.array([0, 0])
         balance = np.ones(3) if analog_balance is None else np.asarray(analog_balance, np.float64).reshape(3)
-        pick = lambda ms: jnp.asarray(np.stack([ms[i] for i in order]), dtype)
+        pick = lambda ms: device_array(np.stack([ms[i] for i in order]), dtype)
         return cls(
-            calibration_cct=jnp.asarray(np.asarray(ccts)[order], dtype),
+            calibration_cct=device_array(np.asarray(ccts)[order], dtype),
             color_matrix=pick(matrices),
             camera_calibration=pick(calibrations),
             forward_matrix=pick(forwards),
-            analog_balance=jnp.asarray(balance, dtype),
+            analog_balance=device_array(balance, dtype),
             illuminant_xy=pick(whites),
             has_forward_matrix=bool(has_forward),
             calibration_illuminants=sorted_codes,

@@ -21,6 +21,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from g2r_jax.runtime.host_arrays import device_array
+
 _CANDIDATES = 16  # rejection draws per sample; with the hull of the data holding most of the
                  # Gaussian's mass, P(all 16 outside) is negligible
 
@@ -110,10 +112,10 @@ def _model(weights, means, covariances, hull, kind, use_hull, dtype) -> Illumina
     cholesky = np.linalg.cholesky(covariances + jitter)
     hull = np.zeros((1, 3)) if hull is None else np.asarray(hull)
     return IlluminantModel(
-        weights=jnp.asarray(np.asarray(weights) / np.sum(weights), dtype),
-        means=jnp.asarray(means, dtype),
-        cholesky=jnp.asarray(cholesky, dtype),
-        hull=jnp.asarray(hull, dtype),
+        weights=device_array(np.asarray(weights) / np.sum(weights), dtype),
+        means=device_array(means, dtype),
+        cholesky=device_array(cholesky, dtype),
+        hull=device_array(hull, dtype),
         kind=kind,
         use_hull=use_hull,
     )

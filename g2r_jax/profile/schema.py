@@ -20,6 +20,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 from g2r_jax.runtime import x64 as _x64
+from g2r_jax.runtime.host_arrays import device_array
 from g2r_jax.illuminants import distributions as _illuminants
 from g2r_jax import sensor as _sensor
 from g2r_jax.colour.dng_model import DngColourModel
@@ -86,8 +87,8 @@ def parse_cfa(pattern) -> np.ndarray:
 
 def default_noise(dtype=np.float32) -> _sensor.NoiseModel:
     """A noiseless model (used when nothing is known about the sensor's noise)."""
-    return _sensor.NoiseModel(iso=jnp.asarray([100.0], dtype), shot=jnp.zeros((1, 4), dtype),
-                              read=jnp.zeros((1, 4), dtype), iso_range=jnp.asarray([100.0, 100.0], dtype))
+    return _sensor.NoiseModel(iso=device_array([100.0], dtype), shot=device_array(np.zeros((1, 4)), dtype),
+                              read=device_array(np.zeros((1, 4)), dtype), iso_range=device_array([100.0, 100.0], dtype))
 
 
 # ------------------------------------------------------------------------------ JSON (de)serialise
@@ -224,7 +225,7 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
         r.fail("version", f"unsupported version {version!r} (this g2r_jax reads version {SCHEMA_VERSION})")
 
     check_document(document, source)   # types and physical ranges (the same check before saving)
-    as_j = lambda a: jnp.asarray(a, dtype)
+    as_j = lambda a: device_array(a, dtype)
 
     colour_doc = r.get(document, "colour", "colour")
     codes = r.get(colour_doc, "calibration_illuminants", "colour")
@@ -300,8 +301,8 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
         clip_level=as_j(get_effect("clip_level", ())),
         channel_gain=as_j(get_effect("channel_gain", (4,))),
         shading=as_j(get_effect("shading", (4, 2))),
-        defect_rows=jnp.asarray(defects[:, 0], jnp.int32),
-        defect_cols=jnp.asarray(defects[:, 1], jnp.int32),
+        defect_rows=device_array(defects[:, 0], jnp.int32),
+        defect_cols=device_array(defects[:, 1], jnp.int32),
         defect_values=as_j(defects[:, 2]),
         row_noise_std=as_j(get_effect("row_noise_std", ())),
         column_noise_std=as_j(get_effect("column_noise_std", ())))
@@ -319,7 +320,7 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
     spectral_doc = r.get(document, "spectral", "spectral", optional=True)
     spectral = None if spectral_doc is None else _spectral_model.spectral_from_dict(spectral_doc, r.fail, dtype)
     return SensorProfile(
-        cfa_pattern=jnp.asarray(cfa, jnp.int32), black_level=as_j(black), white_level=as_j(white),
+        cfa_pattern=device_array(cfa, jnp.int32), black_level=as_j(black), white_level=as_j(white),
         baseline_exposure=as_j(float(document.get("baseline_exposure", 0.0))), colour=colour,
         illuminants=illuminant_model, exposure=exposure, noise=noise, effects=effects, info=info,
         spectral=spectral)
@@ -378,6 +379,6 @@ def noise_from_table(iso, beta1_shot, beta2_read, black_level, white_level, dtyp
     span = float(white_level) - black
     shot = np.asarray(beta1_shot, np.float64) / span
     read = (np.asarray(beta1_shot) * black + np.asarray(beta2_read)) / span**2
-    return _sensor.NoiseModel(iso=jnp.asarray(iso, dtype), shot=jnp.asarray(shot, dtype),
-                              read=jnp.asarray(read, dtype),
-                              iso_range=jnp.asarray([iso.min(), iso.max()], dtype))
+    return _sensor.NoiseModel(iso=device_array(iso, dtype), shot=device_array(shot, dtype),
+                              read=device_array(read, dtype),
+                              iso_range=device_array([iso.min(), iso.max()], dtype))

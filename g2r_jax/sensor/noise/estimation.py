@@ -46,6 +46,8 @@ from functools import lru_cache
 import numpy as np
 from scipy import special as _special
 
+from g2r_jax.sensor.noise.quantisation import rounding_variance as quantisation_variance   # 1/12 DN^2, normalised
+
 # Unique lags (dy, dx) of a half 5 x 5 window: the support of the autocovariance of noise
 # correlated by a 3 x 3 kernel (C(-l) = C(l)).
 LAGS = ((0, 0), (0, 1), (0, 2), (1, -2), (1, -1), (1, 0), (1, 1), (1, 2),
@@ -166,12 +168,6 @@ def _window(values) -> np.ndarray:
         window[2 + dy, 2 + dx] = v
         window[2 - dy, 2 - dx] = v
     return window
-
-
-def quantisation_variance(black_level, white_level) -> np.ndarray:
-    """(4,) variance of rounding to integer DN, 1/12 DN^2, in normalised units per position."""
-    span = float(white_level) - np.resize(np.asarray(black_level, np.float64), 4)
-    return 1.0 / 12.0 / span**2
 
 
 def default_edges(n_bins: int = 16, low: float = 2.0**-11, high: float = 1.0) -> np.ndarray:

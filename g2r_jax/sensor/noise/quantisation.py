@@ -17,12 +17,12 @@ import warnings
 import jax.numpy as jnp
 import numpy as np
 
-from g2r_jax.sensor.noise.estimation import quantisation_variance
-
 
 def rounding_variance(black_level, white_level) -> np.ndarray:
-    """(4,) rounding variance 1/12 DN^2 per tile position, in normalised units 1/12/(white - black)^2."""
-    return quantisation_variance(black_level, white_level)
+    """(4,) rounding variance 1/12 DN^2 per tile position, in normalised units 1/12/(white - black)^2
+    (also `estimation.quantisation_variance`; here without the estimators' scipy, for the converter)."""
+    span = float(white_level) - np.resize(np.asarray(black_level, np.float64), 4)
+    return 1.0 / 12.0 / span**2
 
 
 def read_without_rounding(read, black_level, white_level) -> np.ndarray:
