@@ -11,11 +11,15 @@ evidence a measured set carries besides optical-black pixels (the audit reads no
 scene content).
 
 Profiles: `demo` (the synthetic 12-bit camera of `g2r_jax.audit.synthetic`) or any shipped
-profile name (`s20fe_night`: 10-bit, dark night exposures, ISO 100-3200; `gopro_hero6`: 14-bit).
-Default: demo and s20fe_night.
+profile name (`s20fe_night`: 10-bit, dark night exposures, ISO 100-3200; `gopro_hero6`: 14-bit);
+`all`: every shipped profile and demo. Default: demo and s20fe_night.
 
-    /work/venv/bin/python benchmarks/audit_detection.py [--profile demo,s20fe_night] [--seeds 5]
+    python benchmarks/audit_detection.py [--profile demo,s20fe_night|all] [--seeds 5]
         [--workers 2] [--files 24] [--height 120 --width 180] [--sizes 120x180,200x300]
+
+Only clean sets (false alarms): `--clean-only` (the same as `--seeds 0`); only injected causes:
+`--clean-seeds 0`. The clean sets use seeds 1000.. and the injected ones 0.., so runs split this
+way add up to one run of both.
 
 Single files: `--files 1 --height 1000 --width 1500`; mixed sizes: `--sizes 120x180,200x300`.
 Measured charts instead of files (`colour_matrix`, issue 10): `--charts 30 --profile Canon600D`.
@@ -128,6 +132,7 @@ def main(argv=None):
                                                      "(mixed sizes; overrides --height/--width), e.g. 120x180,200x300")
     parser.add_argument("--causes", default="all", help="comma-separated causes, or 'all'")
     parser.add_argument("--clean-seeds", type=int, default=20, help="clean sets per profile (default 20)")
+    parser.add_argument("--clean-only", action="store_true", help="only clean sets (false alarms): --seeds 0")
     parser.add_argument("--dark-frames", type=int, default=DARK_FRAMES, help="dark frames in every measured set")
     parser.add_argument("--charts", type=int, default=0,
                         help="instead of DNG files: audit sets of this many chart images for colour_matrix "
@@ -135,6 +140,12 @@ def main(argv=None):
     args = parser.parse_args(argv)
     from g2r_jax.audit.vocabulary import FILE_CAUSES   # hidden in DNG files
 
+    if args.clean_only:
+        args.seeds = 0
+    if args.profile == "all":
+        import g2r_jax
+
+        args.profile = ",".join(list(g2r_jax.shipped_profiles()) + ["demo"])
     profiles = args.profile.split(",")
     causes = (["colour_matrix"] if args.charts else list(FILE_CAUSES)) if args.causes == "all" else args.causes.split(",")
     clean = args.clean_seeds if args.clean_seeds is not None else args.seeds

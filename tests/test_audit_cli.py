@@ -70,6 +70,20 @@ def test_cli_missing_folder_is_one_line(camera, capsys):
     assert status != 0 and len(err.splitlines()) == 1 and "nope" in err and "Traceback" not in err
 
 
+def test_cli_measured_may_be_one_dng_file(camera, tmp_path, capsys):
+    """`--measured` takes one DNG as well as a folder (a single real frame is a common first try)."""
+    one = camera / "dng" / "IMG_000.dng"
+    status = main(["--profile", str(camera / "profile.json"), "--measured", str(one),
+                   "--report", str(tmp_path / "r.json"), "--quiet"])
+    assert status == 0, capsys.readouterr().err
+    assert json.loads((tmp_path / "r.json").read_text())["n_measured"] == 1
+    (tmp_path / "notes.txt").write_text("not a dng")
+    status = main(["--profile", str(camera / "profile.json"), "--measured", str(tmp_path / "notes.txt"),
+                   "--report", str(tmp_path / "r2.json")])
+    err = capsys.readouterr().err.strip()
+    assert status != 0 and len(err.splitlines()) == 1 and "notes.txt" in err and "Traceback" not in err
+
+
 def test_cli_bad_dng_names_the_file(camera, tmp_path, capsys):
     folder = tmp_path / "bad"
     folder.mkdir()

@@ -13,10 +13,13 @@ DNG_SUFFIXES = (".dng",)
 
 
 def measured_paths(folder) -> list[Path]:
-    """The DNG files of a folder, sorted by name; DngError when there are none."""
+    """The DNG files of a folder, sorted by name, or one DNG file given by its path; DngError when
+    there are none."""
     folder = Path(folder)
+    if folder.is_file() and folder.suffix.lower() in DNG_SUFFIXES:
+        return [folder]
     if not folder.is_dir():
-        raise DngError(folder, "not a folder")
+        raise DngError(folder, "neither a folder nor a .dng file")
     paths = sorted(p for p in folder.iterdir() if p.suffix.lower() in DNG_SUFFIXES)
     if not paths:
         raise DngError(folder, "no .dng files in this folder")

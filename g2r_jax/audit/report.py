@@ -132,9 +132,17 @@ def _params_words(params: dict, limit: int = 8) -> str:
 _POSITIONS = ("(0,0)", "(0,1)", "(1,0)", "(1,1)")
 
 
+def _position_colours(labels) -> list:
+    """A plot colour per CFA position: red, green (two shades), blue after the labels' colour."""
+    if not labels:
+        return ["tab:red", "tab:green", "tab:olive", "tab:blue"]
+    greens = iter(["tab:green", "tab:olive", "darkgreen", "yellowgreen"])
+    return [{"R": "tab:red", "B": "tab:blue"}.get(str(label)[:1]) or next(greens) for label in labels]
+
+
 def _nlf_plot(ax, data):
     """Measured NLF (points with 95 % intervals, half A and B together) against the model(s)."""
-    colours = ("tab:red", "tab:green", "tab:olive", "tab:blue")
+    colours = _position_colours(data.get("labels"))
     f = data["files"][0]
     span = np.resize(np.asarray(f.get("span") or 1.0, np.float64), 4)
     for p in range(4):
@@ -149,7 +157,8 @@ def _nlf_plot(ax, data):
         ok = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
         scale = span[p] ** 2
         ax.errorbar(100 * x[ok], y[ok] * scale, yerr=[(y[ok] - lo[ok]) * scale, (hi[ok] - y[ok]) * scale],
-                    fmt="o", ms=3, color=colours[p], label=f"measured, CFA {_POSITIONS[p]} (95 % interval)")
+                    fmt="o", ms=3, color=colours[p], label=f"measured, {(data.get('labels') or _POSITIONS)[p]} "
+                                                            "(95 % interval)")
     grid = np.geomspace(1e-4, 1.0, 100)
     for key, style, words in (("model_curve", "--", "profile's model"), ("extended_curve", "-", "extended profile")):
         if data.get(key) is not None:
@@ -174,7 +183,7 @@ def _strip_plot(ax, data):
         sv = s[:, j][np.isfinite(s[:, j])] if s.size else np.zeros(0)
         mv = m[:, j][np.isfinite(m[:, j])]
         ax.scatter(j - 0.15 + 0.08 * rng.standard_normal(sv.size), sv, s=10, color="0.6",
-                   label="simulated files (profile)" if j == 0 else None)
+                   label=data.get("simulated_label", "simulated files (profile)") if j == 0 else None)
         ax.scatter(np.full(mv.size, j + 0.15), mv, s=24, color="tab:red", marker="D",
                    label="measured files" if j == 0 else None)
     ax.set_xticks(range(k))
@@ -232,16 +241,65 @@ def _plot_finding(finding, path) -> bool:
     return True
 
 
-_STYLE = ("body{font-family:sans-serif;max-width:1000px;margin:1em auto;color:#222}"
+_STYLE = ("body{font-family:sans-serif;max-width:1000px;margin:1em auto;color:#222;line-height:1.35}"
           "table{border-collapse:collapse}td,th{border:1px solid #bbb;padding:3px 6px;font-size:13px;vertical-align:top}"
           ".finding{border:1px solid #ccc;border-radius:6px;padding:0.6em 1em;margin:1em 0}"
+          ".status{font-size:14px;font-weight:normal;padding:1px 8px;border-radius:4px;margin-left:0.6em}"
+          ".fixed{background:#dff0d8}.open{background:#f8e0c0}.summary{font-size:16px}"
+          ".note{color:#555;font-size:13px}code{background:#f3f3f3;padding:0 3px}"
           ".yes{color:#b00;font-weight:bold}.gain{font-size:15px}")
 
 
+def _names(names, limit: int = 4) -> str:
+    names = [n for n in names if n]
+    if not names:
+        return ""
+    shown = ", ".join(names[:limit])
+    return f" ({shown}{f' and {len(names) - limit} more' if len(names) > limit else ''})"
+
+
+def header_lines(report: dict) -> list:
+    """The page's opening lines: what was compared with what, and where the outputs are."""
+    lines = []
+    if report.get("profile_name"):
+        lines.append(f"Profile: {report['profile_name']}.")
+    if report.get("n_measured"):
+        sizes = ", ".join(f"{h} x {w}" for h, w in (report.get("sizes") or [report["size"]]))
+        simulated = " x ".join(str(v) for v in report.get("simulated_size", report["size"]))
+        lines.append(f"Measured: {report['n_measured']} DNG file(s){_names(report.get('measured_files') or [])} of "
+                     f"{sizes} pixels, compared with {report['n_simulated']} files simulated from the profile "
+                     f"({simulated} pixels).")
+    if report.get("n_charts"):
+        lines.append(f"Measured: {report['n_charts']} colour chart image(s).")
+    lines += [line[0].upper() + line[1:] + "." for line in setting_words(report)]
+    lines.append(f"Differences are reported at a family-wise error rate of {report['alpha']:g} (the chance that a "
+                 "camera the profile describes exactly shows any finding).")
+    return lines
+
+
+def result_line(report: dict) -> str:
+    """One sentence: how many differences, how many the extended profile fixes, where it is."""
+    significant = [f for f in report["findings"] if f["significant"]]
+    if not significant:
+        return "No significant difference between the measured files and the simulation: the profile fits."
+    kept = sum(bool(f.get("kept")) for f in significant)
+    words = f"{len(significant)} significant difference(s): {kept} fixed by the extended profile"
+    if kept and report.get("extended_profile"):
+        words += (f" ({html.escape(report['extended_profile'])}; convert with "
+                  f"<code>g2r-convert --profile {html.escape(report['extended_profile'])}</code>)")
+    elif kept:
+        words += " (rerun with <code>--extended-profile PATH</code> to save it)"
+    if len(significant) - kept:
+        words += f", {len(significant) - kept} not fixed (see below)"
+    return words + "."
+
+
 def write_html(report: dict, folder) -> Path | None:
-    """report.html in `folder` with one section per finding (significant first): evidence, the
-    plot that makes the case (PNG next to the page, when matplotlib is installed), parameters
-    and the held-out gain as before/after numbers; then a table of every test. Returns the page."""
+    """report.html in `folder`: what was compared, the result in one sentence and where the
+    outputs are; then one numbered section per significant finding (plain title, what differs,
+    what to do, the plot that makes the case as a PNG next to the page when matplotlib is
+    installed, the held-out check as before/after numbers; statistic, evidence and fitted
+    parameters in a collapsed details part); then a table of every test. Returns the page."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     try:
@@ -261,39 +319,47 @@ def write_html(report: dict, folder) -> Path | None:
         if f.get("gain"):
             g = f["gain"]
             where = {True: "held-out files", "regions": "held-out regions of the file",
-                     False: "in-sample (one file)"}.get(g.get("heldout"), "")
-            gain = (f"<table><tr><th>held-out check</th><th>before (profile)</th><th>after (extended)</th>"
-                    f"<th>change</th><th>verdict</th></tr><tr><td>{html.escape(g['metric'])}, {where}</td>"
-                    f"<td>{g['before']:.4g}</td><td>{g['after']:.4g}</td>"
+                     False: "in-sample (one file: no held-out part)"}.get(g.get("heldout"), "")
+            verdict = "kept (in the extended profile)" if f.get("kept") else "rejected (no gain)"
+            gain = (f"<table><tr><th>check of the fitted extension</th><th>before (profile)</th>"
+                    f"<th>after (extended)</th><th>change</th><th>verdict</th></tr><tr><td>{html.escape(g['metric'])}, "
+                    f"{where}</td><td>{g['before']:.4g}</td><td>{g['after']:.4g}</td>"
                     f"<td>{(g['after'] / g['before'] - 1) * 100 if g['before'] else 0:+.0f} %</td>"
-                    f"<td>{'kept' if f.get('kept') else 'rejected'}</td></tr></table>")
+                    f"<td>{verdict}</td></tr></table>")
         params = ""
         if f.get("params"):
             rows = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(_params_words({k: v}).split(' = ', 1)[-1])}</td></tr>"
                            for k, v in f["params"].items() if k != "hull_points")
             params = f"<table><tr><th>fitted parameter</th><th>value</th></tr>{rows}</table>"
-        title = f["cause"] if f["cause"] != "unexplained" else f"unexplained ({f.get('candidate') or 'no candidate'})"
+        state = wording.status(f)
         sections.append(
-            f"<div class='finding'><h2>{html.escape(title)}</h2>"
+            f"<div class='finding'><h2>{len(sections) + 1}. {html.escape(wording.title(f))}"
+            f"<span class='status {'fixed' if f.get('kept') else 'open'}'>{html.escape(state)}</span></h2>"
             f"<p><b>{html.escape(wording.sentence(f))}</b></p>"
             f"<p>What to do: {html.escape(wording.action(f, report))}</p>{image}<p class='gain'>{gain}</p>"
-            f"<details><summary>details</summary><p>{html.escape(wording.p_words(f['p']))}, score {f['score']:.1f}. "
+            f"<details><summary>details (statistic, evidence, fitted parameters)</summary>"
+            f"<p>{html.escape(wording.p_words(f['p']))}, score {f['score']:.1f}. "
             f"<i>{html.escape(f['statistic'])}</i></p><p>{html.escape(wording.clean(f['evidence']))}</p>{params}"
             f"</details></div>")
-    if not sections:
-        sections.append("<p>No significant difference between the measured files and the simulation.</p>")
-    elif len(sections) > 1:
-        sections.append(f"<p>{html.escape(wording.RANKING.format(cap=report.get('score_cap', 40.0)))}</p>")
+    ranking = ""
+    if len(sections) > 1:
+        ranking = f"<p class='note'>{html.escape(wording.RANKING.format(cap=report.get('score_cap', 40.0)))}</p>"
     rows = "".join(
         f"<tr><td>{html.escape(str(f['cause']))}</td><td class='{'yes' if f['significant'] else ''}'>"
         f"{'yes' if f['significant'] else 'no'}</td><td>{f['score']:.2f}</td><td>{html.escape(wording.p_words(f['p']))}</td>"
         f"<td>{html.escape(wording.clean(f['evidence']))}</td></tr>" for f in report["findings"])
-    head = html.escape(summary(report).splitlines()[0])
-    head += "".join(f"<br>{html.escape(line)}" for line in setting_words(report))
+    head = "".join(f"<p>{html.escape(line)}</p>" for line in header_lines(report))
+    outputs = ""
+    if report.get("report_path"):
+        outputs = (f"<p class='note'>Written: this page ({html.escape(str(folder / 'report.html'))}), "
+                   f"the machine-readable report {html.escape(str(report['report_path']))}"
+                   + (f", the extended profile {html.escape(str(report['extended_profile']))}"
+                      if report.get("extended_profile") else "") + ".</p>")
     page = folder / "report.html"
     atomic_write_bytes(page, (
-        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>g2r-diagnose</title><style>{_STYLE}</style></head>"
-        f"<body><h1>g2r-diagnose</h1><p>{head}</p>{''.join(sections)}"
+        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>g2r-diagnose report</title><style>{_STYLE}</style>"
+        f"</head><body><h1>g2r-diagnose report</h1>{head}<p class='summary'><b>Result:</b> {result_line(report)}</p>"
+        f"{outputs}{ranking}{''.join(sections)}"
         f"<details><summary>All tests (details)</summary><table><tr><th>cause</th><th>significant</th><th>score</th><th>p</th><th>evidence</th></tr>"
-        f"{rows}</table></details><p>time {report['timing']['total_s']:.1f} s</p></body></html>\n").encode())
+        f"{rows}</table></details><p class='note'>time {report['timing']['total_s']:.1f} s</p></body></html>\n").encode())
     return page

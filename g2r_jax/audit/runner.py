@@ -10,6 +10,7 @@ import os
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import numpy as np
 
@@ -127,6 +128,7 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         if chart_report is None:
             raise ValueError("nothing to audit: give measured DNG files, charts, or both")
         chart_report.update(alpha=alpha, tests=tests, threshold_p=alpha / max(tests, 1), seed=seed,
+                            profile_name=str(getattr(profile.info, "name", "") or ""),
                             timing={"total_s": time.perf_counter() - started})
         return chart_report
     by_name = {c.name: c for c in registry}
@@ -290,6 +292,8 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         "findings": findings, "unexplained": unexplained,
         "vocabulary": list(CAUSES), "alpha": alpha, "tests": tests, "threshold_p": threshold, "score_cap": SCORE_CAP,
         "n_measured": len(items), "n_simulated": n_sim, "seed": seed,
+        "profile_name": str(getattr(profile.info, "name", "") or ""),
+        "measured_files": [Path(str(f.get("name") or "")).name for f in measured_stats],
         "n_dark_frames": sum(bool(f.get("dark_frame")) for f in measured_stats),
         "bursts": [[measured_stats[i]["name"] for i in group] for group in groups],
         "n_independent": len(units), "lens_shading_simulated": bool(with_lens),

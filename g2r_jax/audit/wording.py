@@ -16,6 +16,28 @@ RANKING = ("Findings are ordered by how sure the audit is: significant ones firs
 
 _COLOURS = {0: "red", 1: "green", 2: "blue"}
 
+TITLES = {"noise_model": "Noise", "noise_correlation": "Correlated noise", "black_level": "Black level",
+          "white_level": "Clipping level", "lens_shading": "Lens shading", "green_imbalance": "Green imbalance",
+          "banding": "Banding (row or column offsets)", "defective_pixels": "Defective pixels",
+          "exposure_distribution": "Exposure of the scenes", "illuminant_distribution": "White balance (illuminants)",
+          "colour_matrix": "Colour matrices"}
+
+
+def title(f: dict) -> str:
+    """'Noise (noise_model)': plain words, then the cause's name as REPORT.json has it."""
+    name = f.get("source") or f.get("candidate") if f["cause"] == "unexplained" else f["cause"]
+    words = TITLES.get(name, name or "unexplained")
+    return f"{words} ({name})" if name else words
+
+
+def status(f: dict) -> str:
+    """What became of a significant finding: in the extended profile, or not explained."""
+    if f.get("kept"):
+        return "fixed by the extended profile"
+    if f["cause"] == "unexplained":
+        return "not explained"
+    return "not fixed"
+
 
 def p_words(p) -> str:
     """'p = 0.0042', or a bound 'p < 1e-12' below 0.001 (never 'p 0': a p-value of 0 is below
@@ -38,32 +60,57 @@ def _list(values, fmt="{:+.2g}") -> str:
     return ", ".join(fmt.format(v) for v in values) if values else "n/a"
 
 
+def _signed_worst(d) -> float:
+    """The component of `d` largest in magnitude, with its sign (0 when none is finite)."""
+    d = np.asarray(d, np.float64)
+    d = d[np.isfinite(d)]
+    return float(d[np.argmax(np.abs(d))]) if d.size else 0.0
+
+
 def sentence(f: dict) -> str:
     """What differs between the measured files and the profile's simulation, and by how much."""
     cause, d = f.get("source", f["cause"]), np.asarray(f.get("difference") or [], np.float64)
     finite = np.abs(d[np.isfinite(d)])
     worst = float(finite.max()) if finite.size else 0.0
     if cause == "black_level":
-        return (f"The sensor's black sits {_list(f.get('difference_dn', d), '{:+.2f}')} DN (per CFA position) "
-                "away from where the profile puts it, measured on pixels that see no light.")
+        dn = np.asarray(f.get("difference_dn", d), np.float64)
+        dn = dn[np.isfinite(dn)]
+        if dn.size and np.ptp(dn) <= max(0.1, 0.05 * np.max(np.abs(dn))):   # one offset for every position
+            where = f"{abs(float(np.mean(dn))):.2f} DN {'above' if np.mean(dn) > 0 else 'below'}"
+        else:
+            where = f"{_list(dn, '{:+.2f}')} DN (per CFA position) away from"
+        return f"The sensor's black sits {where} where the profile puts it, measured on pixels that see no light."
     if cause == "noise_model":
         w = f.get("worst")
         where = "a burst of frames of one scene" if f.get("temporal") else "flat regions of the files"
         if w:
-            return (f"The camera's noise differs from the profile's: its variance is x{w['ratio']:.2f} the profile's "
-                    f"at {100 * w['level']:.2g} % of the range (measured on {where}).")
+            text = (f"The camera's noise differs from the profile's: its variance is x{w['ratio']:.2f} the profile's "
+                    f"at {100 * w['level']:.2g} % of the range (the surest difference; measured on {where})")
+            levels = [(x, r) for x, r in f.get("ratio_by_level") or [] if np.isfinite(r) and r > 0]
+            if len(levels) >= 2:
+                low, high = min(levels, key=lambda v: v[1]), max(levels, key=lambda v: v[1])
+                ratio = lambda r: f"x{r:.2f}" if r >= 0.1 else f"x{r:.2g}"
+                text += (f"; over the signal levels measured it ranges from {ratio(low[1])} (at {100 * low[0]:.2g} %) "
+                         f"to {ratio(high[1])} (at {100 * high[0]:.2g} %)")
+            return text + "."
         return "The camera's noise differs from the profile's noise model (dark and bright signal levels compared)."
     if cause == "white_level":
-        return f"The measured files clip at a level {100 * worst:.2g} % of the range away from the profile's."
+        direction = "below" if _signed_worst(d) < 0 else "above"
+        return (f"The measured files clip (saturate) {100 * worst:.2g} % of the range {direction} the level the "
+                "profile clips at.")
     if cause == "lens_shading":
-        return (f"The corners are {100 * (math.exp(worst) - 1):.2g} % brighter or darker relative to the centre "
-                "than the profile's lens shading makes them.")
+        signed = _signed_worst(d)
+        return (f"Relative to the centre, the corners are {100 * abs(math.exp(signed) - 1):.2g} % "
+                f"{'darker' if signed < 0 else 'brighter'} than the profile's lens shading makes them "
+                "(the colour channel that differs most).")
     if cause == "green_imbalance":
         return f"The two green sites of the colour filter differ by {100 * (math.exp(worst) - 1):.2g} % more than the profile says."
     if cause == "banding":
         return "Rows or columns of the measured files carry offsets (banding) the profile does not simulate."
     if cause == "exposure_distribution":
-        return f"The measured files are {worst:.2g} stops brighter or darker than the profile's exposure model gives."
+        signed = _signed_worst(d)
+        return (f"The measured scenes are {abs(signed):.2g} stops {'darker' if signed < 0 else 'brighter'} on average "
+                "than the profile's exposure model makes them.")
     if cause == "illuminant_distribution":
         return "The measured files' white balance (as-shot neutrals) lies outside what the profile's illuminant model draws."
     if cause == "defective_pixels":

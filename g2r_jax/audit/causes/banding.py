@@ -22,7 +22,7 @@ class Banding(Cause):
     def user_units(self, values, files):
         return np.sqrt(np.maximum(values, 0)) * file_spans(files).mean(1, keepdims=True)
 
-    def component_labels(self, k):
+    def component_labels(self, k, profile=None):
         return ["rows", "columns"]
 
     def fit(self, measured, simulated, profile, *, seed=0):

@@ -155,8 +155,12 @@ class Cause:
         """The statistic in the units a user reads (override: DN, % of range, ratio)."""
         return values
 
-    def component_labels(self, k: int) -> list:
-        return ["(0,0)", "(0,1)", "(1,0)", "(1,1)"][:k] if k == 4 else [str(j) for j in range(k)]
+    def component_labels(self, k: int, profile=None) -> list:
+        """Names of a statistic's components for the report: the colour and the place in the 2 x 2
+        CFA tile of per-position statistics ('R (0,0)'), else the component's index."""
+        if k != 4:
+            return [str(j) for j in range(k)]
+        return position_labels(profile)
 
     def plot(self, measured, simulated, profile, extended=None) -> dict | None:
         """Plot data for the report: per component, measured against simulated files."""
@@ -165,7 +169,7 @@ class Cause:
             m = self.user_units(self.vectors(measured, profile), measured)
             s = self.user_units(self.vectors(simulated, profile), simulated)
         return {"kind": "strip", "measured": np.asarray(m).tolist(), "simulated": np.asarray(s).tolist(),
-                "unit": self.unit, "labels": self.component_labels(np.shape(m)[1]),
+                "unit": self.unit, "labels": self.component_labels(np.shape(m)[1], profile),
                 "title": f"{self.name}: measured files against files simulated by the profile"}
 
     # -- how its extension is fitted and applied
@@ -188,3 +192,14 @@ class Cause:
         resimulated = simulate_stats(self.apply(profile, params), self.name)
         return (self.discrepancy(held_files, simulated, profile, seed=seed),
                 self.discrepancy(held_files, resimulated, profile, seed=seed))
+
+
+def position_labels(profile=None) -> list:
+    """['R (0,0)', 'G (0,1)', ...]: the colour of each place in the 2 x 2 CFA tile (row, column),
+    from the profile's CFA pattern; the places alone without a profile."""
+    places = ["(0,0)", "(0,1)", "(1,0)", "(1,1)"]
+    pattern = getattr(profile, "cfa_pattern", None)
+    if pattern is None:
+        return places
+    colours = ["R", "G", "B"]
+    return [f"{colours[int(c)] if 0 <= int(c) < 3 else c} {place}" for c, place in zip(np.asarray(pattern).ravel(), places)]

@@ -101,7 +101,7 @@ class BlackLevel(Cause):
             return None
         pedestal = np.asarray(profile.effects.black_pedestal, np.float64)
         return {"kind": "strip", "measured": values.tolist(), "simulated": [pedestal.tolist()],
-                "unit": self.unit, "labels": self.component_labels(4),
+                "unit": self.unit, "labels": self.component_labels(4, profile), "simulated_label": "the profile's black",
                 "title": "black_level: measured black (optical black, dark frames) against the profile's"}
 
 

@@ -20,7 +20,7 @@ class ExposureDistribution(Cause):
     floor, tolerance = 0.01, 0.1
     unit = "log2 brightness of the image centre (stops)"
 
-    def component_labels(self, k):
+    def component_labels(self, k, profile=None):
         return ["centre"]
 
     def fit(self, measured, simulated, profile, *, seed=0):

@@ -23,7 +23,7 @@ class GreenImbalance(Cause):
     def user_units(self, values, files):
         return np.exp(values)
 
-    def component_labels(self, k):
+    def component_labels(self, k, profile=None):
         return ["G2 / G1"]
 
     def fit(self, measured, simulated, profile, *, seed=0):

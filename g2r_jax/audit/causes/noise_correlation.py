@@ -23,7 +23,7 @@ class NoiseCorrelation(Cause):
         import numpy as np
         return np.exp(values)
 
-    def component_labels(self, k):
+    def component_labels(self, k, profile=None):
         return ["rows"]
 
 

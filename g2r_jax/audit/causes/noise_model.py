@@ -35,7 +35,7 @@ from scipy import stats as _scipy_stats
 
 from g2r_jax.profile import schema as _profile
 from g2r_jax.audit.stats import LARGE_BLOCKS   # files with this many 8x8 blocks per plane carry their own noise evidence
-from g2r_jax.audit.causes.base import Cause, as_profile_dtype
+from g2r_jax.audit.causes.base import Cause, as_profile_dtype, position_labels
 
 DARK_LEVEL = 0.05   # NLF bins below this are read-noise dominated
 MIN_BLOCKS = 10   # evidence.nlf_halves already asks 30 blocks of large files
@@ -361,7 +361,8 @@ class NoiseModel(Cause):
             halves[half]["model"] = model_variance(profile, f, np.asarray(e.signal)).tolist()
         return {"kind": "nlf", "files": [{"name": f.get("name", ""), "iso": f["iso"], "span": np.asarray(f["span"]).tolist(),
                                           "halves": halves}],
-                "model_curve": curve(profile), "extended_curve": None if extended is None else curve(extended)}
+                "model_curve": curve(profile), "extended_curve": None if extended is None else curve(extended),
+                "labels": position_labels(profile)}
 
     def fit(self, measured, simulated, profile, *, seed=0):
         if _bursts(measured):

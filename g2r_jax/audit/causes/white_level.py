@@ -1,7 +1,7 @@
 """`white_level`: the sensor saturates below WhiteLevel (early clipping).
 
-Measures the level of the saturation spike above the dark floor (`stats.clipping_level`),
-fraction of range; extension: `SensorEffects.clip_level`.
+Measures the level of the saturation spike above the sensor's black (`stats.clipping_level`, less the
+pedestal: `stats.file_statistics`), fraction of range; extension: `SensorEffects.clip_level`.
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from g2r_jax.audit.causes.base import Cause, as_profile_dtype, effects_replaced,
 
 class WhiteLevel(Cause):
     name = "white_level"
-    statistic = "saturation spike level above the dark floor, fraction of range, per CFA position"
+    statistic = "saturation spike level above black, fraction of range, per CFA position"
     metric = "rms difference of the clipping level (fraction of range)"
     key = "clip"
     floor, tolerance = 3e-4, 3e-3
-    unit = "clipping level above the dark floor (% of range)"
+    unit = "clipping level above black (% of range)"
 
     def user_units(self, values, files):
         return 100 * values
