@@ -13,6 +13,7 @@ from g2r_jax.cli.common import (
 
 
 EXAMPLES = """  g2r-diagnose --profile my_camera.json --measured my_camera_dngs/ --report audit/REPORT.json
+  g2r-diagnose --profile gopro_hero6 --measured GOPR0024.dng --report gopro/REPORT.json
   g2r-diagnose --profile gopro_hero6 --measured dngs/ --report r.json --extended-profile gopro_extended.json
 """
 
@@ -29,7 +30,8 @@ def _parser() -> argparse.ArgumentParser:
     required.add_argument("--report", required=True, type=Path, metavar="REPORT_JSON",
                           help="REPORT.json to write (its folder is created if missing)")
     parser.add_argument("--measured", metavar="DNG_DIR",
-                        help="folder of measured DNG files of the camera (this, --charts, or both)")
+                        help="folder of measured DNG files of the camera, or one DNG file (this, --charts, "
+                             "or both)")
     parser.add_argument("--charts", metavar="CSV",
                         help="measured colour charts of the camera (chart CSV, see g2r_jax.colour.charts): "
                              "tests and refits the colour matrices (cause colour_matrix)")
@@ -60,7 +62,7 @@ def check_arguments(args) -> str | None:
     if args.charts is not None and not Path(args.charts).is_file():
         return f"--charts {args.charts}: no such file"
     if args.measured is not None and not Path(args.measured).exists():
-        return f"--measured {args.measured}: no such folder"
+        return f"--measured {args.measured}: no such folder or file"
     if args.scenes is not None and not Path(args.scenes).exists():
         return f"--scenes {args.scenes}: no such folder"
     try:
@@ -110,6 +112,7 @@ def _run(args) -> int:
     if args.extended_profile or kept:
         save_profile(result["profile"], extended_path)
         result["extended_profile"] = str(extended_path)
+    result["report_path"] = str(report_path)
     report.write_json(result, report_path)
     page = report.write_html(result, Path(args.html) if args.html else report_path.parent / (report_path.stem + "_html"))
     print(report.summary(result))
