@@ -25,8 +25,10 @@ def arguments(n=5, dtype=np.float32):
 
 @pytest.fixture
 def folder(tmp_path, monkeypatch):
-    monkeypatch.setattr(program_store, "store_folder", lambda: tmp_path)
-    return tmp_path
+    programs = tmp_path / "programs"     # as beside a compilation cache: stored arrays go to its sibling
+    programs.mkdir()
+    monkeypatch.setattr(program_store, "store_folder", lambda: programs)
+    return programs
 
 
 def test_a_new_process_runs_the_stored_program_with_the_same_results(folder, monkeypatch):
@@ -118,3 +120,24 @@ def test_a_prepared_program_runs_without_tracing_again(folder):
     result = program(x, pair)
     assert len(traced) == 1
     np.testing.assert_array_equal(result["sum"], jax.jit(function)(x, pair)["sum"])
+
+
+def test_a_stored_array_is_made_once_and_read_back_equal(folder):
+    made = []
+
+    def make():
+        made.append(1)
+        return np.random.default_rng(0).random((3, 4, 5)).astype(np.float32)
+
+    first = program_store.stored_array(("scenes", 3), make)
+    again = program_store.stored_array(("scenes", 3), make)
+    assert len(made) == 1 and again.dtype == np.float32
+    np.testing.assert_array_equal(first, again)
+    (entry,) = folder.parent.glob("arrays/*.npy")
+    data = bytearray(entry.read_bytes())
+    data[-3] ^= 0xFF                                 # a damaged entry is made again, never trusted
+    entry.write_bytes(bytes(data))
+    np.testing.assert_array_equal(program_store.stored_array(("scenes", 3), make), first)
+    assert len(made) == 2
+    program_store.stored_array(("scenes", 4), make)  # another name, another entry
+    assert len(made) == 3

@@ -12,10 +12,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from g2r_jax.batch.program_store import stored_program
 from g2r_jax.illuminants import distributions as _illuminants
 from g2r_jax.profile import schema as _profile
 from g2r_jax.io.dng_info import DngInfo
 from g2r_jax.pipeline import image_key, unprocess
+from g2r_jax.runtime.host_arrays import device_array
 
 _BUCKET = 64
 
@@ -39,9 +41,12 @@ def pad_defects(profile, height: int):
     return _profile.replace(profile, effects=padded)
 
 
-@jax.jit
-def _simulate_batch(keys, images, neutrals, profile, lens_gain):
+def _simulate_one_batch(keys, images, neutrals, profile, lens_gain):
     return jax.vmap(lambda k, im, n: unprocess(k, im, profile, neutral=n, lens_gain=lens_gain))(keys, images, neutrals)
+
+
+# traced once per shape and option set, then kept on disk for the next g2r-diagnose (as g2r-convert's)
+_simulate_batch = stored_program("audit-simulate", jax.jit(_simulate_one_batch))
 
 
 def _lens_shading(profile, height: int, width: int):
@@ -126,7 +131,7 @@ def simulate(profile, scenes, seed: int, *, batch: int = 8, keys=None,
         idx = list(range(start, stop)) + [start] * (batch - (stop - start))  # constant batch shape
         keys_now = jnp.stack([image_key(seed, i) if keys is None else keys[i] for i in idx])
         neutrals = sample_neutrals(keys_now, profile.illuminants)
-        mosaics, metadata = _simulate_batch(keys_now, jnp.asarray(scenes[idx]), neutrals, padded, lens_gain)
+        mosaics, metadata = _simulate_batch(keys_now, device_array(scenes[idx]), neutrals, padded, lens_gain)
         mosaics = np.asarray(mosaics)
         metadata = {k: np.asarray(v) for k, v in metadata.items()}
         for j, i in enumerate(range(start, stop)):
