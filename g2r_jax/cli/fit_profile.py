@@ -198,6 +198,9 @@ def body(args) -> int:
                 fits[k] = attempt(infos[:k] + infos[k + 1:], None)
             except Exception:  # noqa: BLE001
                 pass
+        if len(fits) > 1:   # several files can each be dropped: drop the one whose colour tags disagree
+            outlier = colour_outlier(infos, list(fits))
+            fits = {outlier: fits[outlier]} if outlier is not None else fits
         if len(fits) == 1:
             (k, profile), = fits.items()
             line = one_line(f"{infos[k].path}: dropped, no valid profile with this file ({error_message(error)})")
@@ -232,6 +235,28 @@ def body(args) -> int:
     print(f"g2r-fit-profile: wrote {args.output} ({profile.illuminants.kind} illuminant model, "
           f"{len(infos)} file(s); {len(failures)} failed)")
     return 1 if failures else 0
+
+
+def colour_outlier(infos, candidates):
+    """The one file among `candidates` (indices into `infos`) whose colour matrices lie farthest
+    from the element-wise median of all files' (files of one camera carry the same or nearly the
+    same matrices), or None when no single file stands out."""
+    import numpy as np
+
+    def tags(info):
+        parts = [np.ravel(np.asarray(m, np.float64))
+                 for m in (*info.color_matrices, *info.camera_calibrations, *info.forward_matrices)]
+        return np.nan_to_num(np.concatenate(parts)) if parts else np.zeros(0)
+
+    vectors = [tags(info) for info in infos]
+    if len(infos) < 3 or len({v.size for v in vectors}) != 1 or vectors[0].size == 0:
+        return None
+    median = np.median(np.stack(vectors), axis=0)
+    distance = {k: float(np.max(np.abs(vectors[k] - median))) for k in candidates}
+    ranked = sorted(distance.values(), reverse=True)
+    if ranked[0] > 0 and (len(ranked) == 1 or ranked[0] > ranked[1]):
+        return max(distance, key=distance.get)
+    return None
 
 
 def remove_stale_temporaries(output: Path) -> int:
