@@ -88,3 +88,18 @@ def test_consistent_outliers_needs_many_files():
     found = significance.consistent_outliers([hot] * 6 + [noise], shape)
     assert found["count"] == 1 and found["rows"][0] == 3 and found["cols"][0] == 5
     assert found["p"] < 1e-3 and found["expected"] < 1e-3
+
+
+def test_noise_correlation_is_blind_to_smooth_shading_and_sees_correlated_noise():
+    """White noise on a shaded scene reads as white (the README tour's clean file once read as
+    correlated noise: first differences keep the shading's slope); noise smoothed along rows does not."""
+    from g2r_jax.audit.stats import noise_correlation
+
+    rng = np.random.default_rng(0)
+    rows, cols = np.mgrid[0:240, 0:320] / 320.0
+    shading = 0.1 + 0.4 * (rows * cols + 0.5 * cols**2)           # smooth, steepest ~0.0025 per pixel
+    white = shading[None] + 0.002 * rng.standard_normal((4, 240, 320))
+    assert abs(float(noise_correlation(white.astype(np.float32))[0])) < 0.03
+    noise = 0.002 * rng.standard_normal((4, 240, 322))
+    smoothed = shading[None] + (noise[..., :-2] + noise[..., 1:-1] + noise[..., 2:]) / np.sqrt(3)
+    assert float(noise_correlation(smoothed.astype(np.float32))[0]) > 0.5

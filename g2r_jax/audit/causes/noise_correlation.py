@@ -1,7 +1,7 @@
 """`noise_correlation`: the noise is not spatially white (denoising, compression, demosaicing).
 
-Measures log of robust var(lag-2 difference) / var(lag-1 difference) in flat regions
-(`stats.noise_correlation`; 0 for white noise). No extension yet: a significant difference is
+Measures log of robust var(lag-2 second difference) / var(lag-1 second difference) in flat
+regions (`stats.noise_correlation`; 0 for white noise, whatever the scene's linear shading). No extension yet: a significant difference is
 reported as unexplained.
 """
 
@@ -12,12 +12,12 @@ from g2r_jax.audit.causes.base import Cause
 
 class NoiseCorrelation(Cause):
     name = "noise_correlation"
-    statistic = "log ratio of lag-2 to lag-1 difference variance in flat regions (1 for white noise)"
+    statistic = "log ratio of lag-2 to lag-1 second-difference variance in flat regions (0 for white noise)"
     metric = ""
     key = "noise_corr"
     floor, tolerance = 0.005, 0.05
     extensible = False
-    unit = "var(lag-2 difference) / var(lag-1 difference) (1 = white)"
+    unit = "var(lag-2 second difference) / var(lag-1 second difference) (1 = white)"
 
     def user_units(self, values, files):
         import numpy as np
