@@ -233,3 +233,13 @@ def test_diagnose_names_a_bad_chart_file_once(tmp_path, capsys):
                           "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].count("charts.csv") == 1 and "row 2" in err[0], err
+
+
+@pytest.mark.parametrize("iso_range", [[1e-320, 3200.0], [0.5, 3200.0], [3200.0, 100.0]])
+def test_profile_iso_range_below_one_or_reversed_is_refused(tmp_path, iso_range):
+    doc = document()   # ISO 1e-320 is 0 in float32: every simulated file had ISO NaN and a black mosaic
+    doc["noise"]["iso_range"] = iso_range
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(pm.ProfileError, match="noise.iso_range"):
+        pm.load_profile(path)

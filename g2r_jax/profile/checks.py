@@ -34,6 +34,8 @@ from g2r_jax.io.tag_checks import (
     MAX_MATRIX_ENTRY,
     MIN_RANGE_DN)
 
+MIN_ISO, MAX_ISO = 1.0, 1e7   # noise.iso and noise.iso_range
+
 
 class ProfileError(ValueError):
     """A profile that cannot be loaded; the message names the file and the problem."""
@@ -170,7 +172,8 @@ def check_document(document, source: str = "<profile>") -> None:
 
     noise = c.obj(document.get("noise"), "noise")
     if noise:
-        c.numbers(noise.get("iso"), "noise.iso", low=0, high=1e7, low_open=True)
+        # an ISO below 1 is no camera's setting, and 1e-320 is 0 in float32 (the simulation's log ISO: NaN)
+        c.numbers(noise.get("iso"), "noise.iso", low=MIN_ISO, high=MAX_ISO)
         c.numbers(noise.get("shot"), "noise.shot", low=0, high=1)
         read = c.numbers(noise.get("read"), "noise.read", low=0, high=1)
         if read.size and black.size:   # a DNG's NoiseProfile O (read plus the 1/12 DN^2 rounding) must stay <= 1
@@ -178,7 +181,9 @@ def check_document(document, source: str = "<profile>") -> None:
             if float(np.max(read)) + rounding > 1:
                 c.fail("noise.read", f"{float(np.max(read)):g} plus the rounding variance {rounding:.3g} exceeds 1 "
                                      "(normalised units)")
-        c.numbers(noise.get("iso_range"), "noise.iso_range", low=0, high=1e7, low_open=True, optional=True)
+        iso_range = c.numbers(noise.get("iso_range"), "noise.iso_range", low=MIN_ISO, high=MAX_ISO, optional=True)
+        if iso_range is not None and iso_range.size == 2 and iso_range.ravel()[0] > iso_range.ravel()[1]:
+            c.fail("noise.iso_range", "expected [lowest, highest]")
         level = c.obj(noise.get("level_function"), "noise.level_function")
         if level:   # the noise shape of g2r_jax.noise_shape; shapes are checked by the loader
             c.numbers(level.get("knots"), "noise.level_function.knots", low=-1, high=2)
