@@ -243,3 +243,24 @@ def test_profile_iso_range_below_one_or_reversed_is_refused(tmp_path, iso_range)
     path.write_text(json.dumps(doc))
     with pytest.raises(pm.ProfileError, match="noise.iso_range"):
         pm.load_profile(path)
+
+
+@pytest.mark.slow
+def test_xla_log_lines_do_not_reach_the_terminal(tmp_path):
+    """XLA's C++ logger writes to descriptor 2 (under load: its slow-compilation alarm); here a
+    dump folder it cannot create makes it log W and E lines on every compilation."""
+    import os
+    import subprocess
+    import sys
+
+    from PIL import Image
+
+    (tmp_path / "in").mkdir()
+    Image.fromarray(np.full((16, 24, 3), 120, np.uint8)).save(tmp_path / "in" / "a.png")
+    env = {k: v for k, v in os.environ.items() if k != "TF_CPP_MIN_LOG_LEVEL"}
+    env["XLA_FLAGS"] = "--xla_dump_to=/proc/g2r_no_such_folder"
+    run = subprocess.run([sys.executable, "-m", "g2r_jax.cli.convert", str(tmp_path / "in"), "--profile", "NikonD40",
+                          "-o", str(tmp_path / "out"), "--no-progress", "--no-compile-cache"],
+                         capture_output=True, text=True, env=env, timeout=600)
+    assert run.returncode == 0, run.stderr[-1000:]
+    assert all(line.startswith("g2r-convert: ") for line in run.stderr.splitlines()), run.stderr[-1000:]

@@ -116,6 +116,9 @@ def _run_command(name: str, body, argv, parser, check=None) -> int:
     if problem:   # a value, not the syntax: one line, like every other error of ours
         print(f"{name}: error: {one_line(problem)}", file=sys.stderr)
         return 2
+    debug = bool(getattr(args, "debug", False))
+    if not debug:   # XLA's own C++ log lines (e.g. its slow-compilation alarm on a loaded machine) are not ours;
+        os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")   # read when jaxlib loads, i.e. in `body`
     from g2r_jax.runtime.deterministic import request_deterministic_gpu_ops
 
     request_deterministic_gpu_ops()
@@ -123,7 +126,6 @@ def _run_command(name: str, body, argv, parser, check=None) -> int:
         from g2r_jax.runtime.compile_cache import enable
 
         enable(program=name)
-    debug = bool(getattr(args, "debug", False))
     with quiet_libraries(name, debug):
         try:
             return int(body(args) or 0)
