@@ -104,3 +104,37 @@ def test_the_keys_of_a_batch_are_each_files_own_key():
     for seed in (0, 7, 2**40 + 3, -5):
         expected = np.stack([np.asarray(file_key(seed, name)) for name in names])
         np.testing.assert_array_equal(np.asarray(file_keys(seed, names)), expected)
+
+
+def test_the_first_program_is_compiled_ahead_only_for_a_credible_header(tmp_path, monkeypatch):
+    """A good first PNG has its program prepared while it decodes; a PNG whose header claims rows
+    its data cannot hold (refused once decoded) has nothing compiled for it, so its refusal is
+    not kept waiting by a compilation for an 8000 x 8000 batch."""
+    import struct
+    import zlib
+
+    from PIL import Image
+
+    from g2r_jax.batch import conversion
+
+    prepared = []
+    original = conversion._batched_unprocess
+
+    def recording(*args, **kwargs):
+        program = original(*args, **kwargs)
+        call = lambda *arguments: program(*arguments)
+        call.prepare = lambda keys, images, *rest: (prepared.append(images.shape), program.prepare(keys, images, *rest))
+        return call
+
+    monkeypatch.setattr(conversion, "_batched_unprocess", recording)
+    Image.fromarray(np.random.default_rng(6).integers(0, 256, (20, 30, 3), dtype=np.uint8)).save(tmp_path / "good.png")
+    profile = pm.load_profile("gopro_hero6")
+    convert_files([tmp_path / "good.png"], profile, tmp_path / "out", options=ConvertOptions(progress=False))
+    assert prepared == [(1, 20, 30, 3)]
+    chunk = lambda kind, data: struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    liar = tmp_path / "liar.png"
+    liar.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 8000, 8000, 8, 2, 0, 0, 0))
+                     + chunk(b"IDAT", zlib.compress(bytes(10 * (1 + 3 * 8000)), 9)) + chunk(b"IEND", b""))
+    result = convert_files([liar], profile, tmp_path / "out2", options=ConvertOptions(progress=False))
+    assert result.errors and "truncated" in result.errors[0]
+    assert prepared == [(1, 20, 30, 3)]

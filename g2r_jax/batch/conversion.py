@@ -171,30 +171,31 @@ def _probe_size(path: Path):
         return None
 
 
-def _predicted_group(path: Path, transfer: str, buckets):
+def _predicted_group(path: Path, transfer: str, buckets, max_pixels):
     """The batch group (bucket, dtype, transfer) `path` will fall in once decoded, read from its
-    header; None when that is not certain before decoding (TIFF, unreadable headers)."""
-    from g2r_jax.io.image_headers import PNG_SIGNATURE
+    header; None when that is not certain before decoding (TIFF, EXR, unreadable headers) or the
+    header's claim is not credible (over the pixel budget, more than the data can hold): a program
+    compiled ahead for a file that is then refused would only make the user wait."""
+    from g2r_jax.io import image_headers
+    from g2r_jax.io.images import PLAUSIBLE_PNG_RATIO
 
-    size, suffix = _probe_size(path), path.suffix.lower()
-    if size is None:
-        return None
-    if suffix == ".png":
-        try:
-            with open(path, "rb") as handle:
-                head = handle.read(25)
-        except OSError:
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".png":
+            width, height, depth, _, claimed, present = image_headers.png_claim(path, path.read_bytes())
+            image_headers.check_pixel_budget(path, width, height, max_pixels)
+            if claimed > PLAUSIBLE_PNG_RATIO * max(present, 1):
+                return None
+            dtype = np.dtype(np.uint8 if depth <= 8 else np.float32)    # 16 bits are decoded as float
+        elif suffix in (".jpg", ".jpeg"):
+            width, height = image_headers.check_jpeg_complete(path, max_pixels)
+            dtype = np.dtype(np.uint8)
+        else:
             return None
-        if head[:8] != PNG_SIGNATURE or len(head) < 25:
-            return None
-        dtype = np.dtype(np.uint8 if head[24] <= 8 else np.float32)   # IHDR bit depth: 16 bits decode as float
-    elif suffix in (".jpg", ".jpeg"):
-        dtype = np.dtype(np.uint8)
-    elif suffix == ".exr":
-        dtype = np.dtype(np.float32)
-    else:
+    except Exception:  # noqa: BLE001 - the decoder names the problem; nothing is prepared
         return None
-    return bucket_for((size[0] - size[0] % 2, size[1] - size[1] % 2), buckets), dtype.str, _transfer_for(path, transfer)
+    size = (height - height % 2, width - width % 2)
+    return bucket_for(size, buckets), dtype.str, _transfer_for(path, transfer)
 
 
 def plan_buckets(sizes):
@@ -440,7 +441,8 @@ def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: 
                 hand_over(*in_flight.pop(0))
 
         # the first file's program is compiled (or loaded) on a thread while the first files are decoded
-        first = _predicted_group(inputs[0], options.transfer, buckets) if bucketing and inputs else None
+        first = (_predicted_group(inputs[0], options.transfer, buckets, options.max_pixels)
+                 if bucketing and inputs else None)
         preparer = futures.ThreadPoolExecutor(1) if first else None
         preparing.append(preparer.submit(prepare, first) if first else None)
         if first:     # the keys' programs are read from the compilation cache while the first file decodes
