@@ -6,8 +6,10 @@ small PNG/JPEG/TIFF/EXR images, and the shipped profiles' JSON.
 
 Mutations (`mutate_dng`): bit flips, truncation, overwritten bytes at random places and in tag
 fields (entry counts, types, offsets, values) within the first 8 KB, or anywhere in the file
-(campaign 'fit-deep'). Side inputs, charts, hostile names and lying image headers are attacked at
-their readers by tests/input_attacks.py; faults of the output folder by tests/fault_harness.py. Images (`mutate_image`): the
+(campaign 'fit-deep'). Chart CSVs (tests/input_attacks.py's mutations) through `g2r-diagnose --charts`
+(campaign 'diagnose-charts'). Side inputs, charts, hostile names and lying image headers are also
+attacked at their readers by tests/input_attacks.py; faults of the output folder by
+tests/fault_harness.py. Images (`mutate_image`): the
 same, plus headers claiming enormous sizes. Profiles (`mutate_profile`): a numeric leaf replaced by
 an extreme, non-finite or wrongly typed value, a key deleted, or a byte-level flip of the JSON.
 
@@ -16,8 +18,9 @@ per-case alarm catches hangs), the exit status is the documented one (0 all good
 failed, 2 could not run at all), every line on stderr is the command's own, short and without a
 traceback or a JAX/equinox text, a failing input is named, the batch goes on (the good files are
 converted or fitted), no partial or temporary outputs, inputs unchanged, bounded memory.
-Run with `python tests/fuzz_harness.py fit|convert|diagnose N` (see README 'Reliability') or
-through tests/test_fuzz.py.
+Run with `python tests/fuzz_harness.py fit|fit-deep|convert|diagnose|diagnose-charts N [SEED [FIRST]]`
+(cases FIRST..N-1 of the campaign of SEED; docs/pages/validation/reliability.md) or through
+tests/test_fuzz.py.
 """
 
 from __future__ import annotations
@@ -38,6 +41,10 @@ import traceback
 from pathlib import Path
 
 import numpy as np
+
+# as the commands' entry point (g2r_jax.cli.common.run_command) does before JAX loads: XLA's C++ log
+# lines are not the commands' (effective only when this module is imported before JAX)
+os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DNG = ROOT / ".." / "shared" / "data" / "dng"
@@ -101,7 +108,16 @@ def make_seeds(folder: Path, profiles=SEED_PROFILES) -> dict:
                 bayer = read_dng_info(path).is_cfa
             except Exception:  # noqa: BLE001 - a seed that is itself refused still gets partners
                 bayer = False
-            seeds["dng"].append((path, [path, path] if bayer else seeds["dng"][-1][1]))
+            partners = seeds["dng"][-1][1]
+            if bayer:   # two distinct good files of its camera: the command counts a file once, however linked
+                partners = []
+                for k in range(2):
+                    copy = folder / "shared_copies" / f"{path.stem}_{k}.dng"
+                    if not copy.exists():
+                        copy.parent.mkdir(exist_ok=True)
+                        shutil.copyfile(path, copy)
+                    partners.append(copy)
+            seeds["dng"].append((path, partners))
     return seeds
 
 
@@ -317,7 +333,10 @@ def fit_case(work: Path, seed_path: Path, partners, data: bytes) -> list:
     for k, partner in enumerate(partners):
         target = folder / f"good{k}.dng"
         if partner.stat().st_size > 4 * 2 ** 20:
-            os.symlink(partner.resolve(), target)
+            try:   # a hard link: a distinct path to the command (a symbolic link would be the same file)
+                os.link(partner, target)
+            except OSError:
+                shutil.copyfile(partner, target)
         else:
             shutil.copyfile(partner, target)
     bad = folder / "mutated.dng"
@@ -445,31 +464,79 @@ def diagnose_case(work: Path, partners, data: bytes) -> list:
     return problems
 
 
+def charts_case(work: Path, text: str) -> list:
+    """A (mutated) chart CSV through `g2r-diagnose --charts`: a report, or one line naming the file."""
+    from g2r_jax.cli.diagnose import main
+
+    charts = work / "charts.csv"
+    charts.write_bytes(text.encode("utf-8", "surrogateescape"))
+    before = _digest(charts)
+    report = work / "new" / "REPORT.json"
+    status, out, err = run_main(main, ["--profile", "NikonD40", "--charts", str(charts), "--report", str(report),
+                                       "--quiet", "--folds", "2"])
+    problems = _line_problems("g2r-diagnose", err) + _memory_problem()
+    if not isinstance(status, int):
+        return problems + [str(status)]
+    lines = err.strip().splitlines()
+    if status == 0:
+        try:
+            json.loads(report.read_text())
+        except (OSError, ValueError) as error:
+            problems.append(f"exit 0 without a readable report: {error}")
+    elif status == 2:
+        if len(lines) != 1 or "charts.csv" not in lines[0]:
+            problems.append(f"refused charts not named in one line: {err.strip()[:300]!r}")
+        if report.exists():
+            problems.append("report written although the command failed")
+    else:
+        problems.append(f"exit status {status}: {err.strip()[:300]!r}")
+    problems += [f"temporary file left: {name}" for name in _leftovers(work / "new")]
+    if _digest(charts) != before:
+        problems.append("inputs modified")
+    return problems
+
+
 # ----------------------------------------------------------------------------- campaigns
 
 def generate_cases(kind: str, n: int, seed: int, seeds: dict):
     """The cases of a campaign, deterministic in `seed`: dicts with the mutated payload and what
     the case runner needs (no command is run here, so a finding can be regenerated)."""
     rng = random.Random(seed)
-    fields = {}
+    fields, contents = {}, {}
     for case in range(n):
         if kind in ("fit", "fit-deep", "diagnose"):
             choices = seeds["dng"] if kind == "fit" else seeds["measured"]   # the audit needs 3+ good files
             seed_path, partners = rng.choice(choices)
-            original = seed_path.read_bytes()
-            if seed_path not in fields:
-                fields[seed_path] = _tag_fields(original)
+            if seed_path not in contents:   # each seed read once (the cases before FIRST are generated too)
+                contents[seed_path] = seed_path.read_bytes()
+                fields[seed_path] = _tag_fields(contents[seed_path])
+            original = contents[seed_path]
             data, how = mutate_dng(original, rng, fields[seed_path], deep=kind == "fit-deep")
             yield {"case": case, "kind": kind, "partners": partners, "data": data, "suffix": ".dng",
                    "label": f"{seed_path.name}: {how}", "payload": data}
+        elif kind == "diagnose-charts":   # the chart CSVs of tests/input_attacks.py, through the command
+            from input_attacks import chart_seed, mutate_csv
+
+            text, how = mutate_csv(chart_seed(rng), rng)
+            if rng.random() < 0.15:   # what the documented format allows: every patch nan
+                lines = text.splitlines()
+                text = "\n".join([lines[0]] + [",".join(line.split(",")[:2] + ["nan"] * 3)
+                                               if ",illuminant," not in line else line for line in lines[1:]]) + "\n"
+                how += ", every patch nan"
+            yield {"case": case, "kind": kind, "text": text, "label": f"charts: {how}",
+                   "payload": text.encode("utf-8", "surrogateescape"), "suffix": ".csv"}
         else:
             image = rng.choice(seeds["image"])
             profile = rng.choice(seeds["profile"])
-            data, how = mutate_image(image.read_bytes(), image.suffix.lower(), rng)
+            if image not in contents:
+                contents[image] = image.read_bytes()
+            if profile not in contents:
+                contents[profile] = profile.read_text()
+            data, how = mutate_image(contents[image], image.suffix.lower(), rng)
             profile_text, profile_how = None, "good profile"
             if rng.random() < 0.5:
-                profile_text, profile_how = mutate_profile(profile.read_text(), rng)
-                data, how = image.read_bytes(), "good image"
+                profile_text, profile_how = mutate_profile(contents[profile], rng)
+                data, how = contents[image], "good image"
             yield {"case": case, "kind": kind, "image": image, "data": data, "profile": profile,
                    "profile_text": profile_text,
                    "payload": data if profile_text is None else profile_text.encode("utf-8", "surrogateescape"),
@@ -483,18 +550,24 @@ def run_case(spec: dict, work: Path) -> list:
         return fit_case(work, None, spec["partners"], spec["data"])
     if spec["kind"] == "diagnose":
         return diagnose_case(work, spec["partners"], spec["data"])
+    if spec["kind"] == "diagnose-charts":
+        return charts_case(work, spec["text"])
     return convert_case(work, spec["image"], f"mutated{spec['image'].suffix}", spec["data"], spec["profile"],
                         spec["profile_text"])
 
 
 def campaign(kind: str, n: int, seed: int = 0, *, seeds_dir: Path | None = None, save_findings: bool = False,
-             profiles=SEED_PROFILES, log=print) -> dict:
-    """Run `n` cases of `kind` ('fit', 'fit-deep', 'convert' or 'diagnose'); returns counts and findings."""
+             profiles=SEED_PROFILES, log=print, first: int = 0) -> dict:
+    """Run cases `first`..`n`-1 of `kind` ('fit', 'fit-deep', 'convert', 'diagnose' or 'diagnose-charts')
+    from `seed`; returns counts and findings. The cases before `first` are generated, not run, so
+    that one campaign can be run in pieces (one process each) with the same cases as in one."""
     base = Path(tempfile.mkdtemp(prefix="g2r_fuzz_"))
     seeds = make_seeds(seeds_dir or base / "seeds", profiles)
     findings = []
     try:
         for spec in generate_cases(kind, n, seed, seeds):
+            if spec["case"] < first:
+                continue
             work = base / f"case{spec['case']}"
             work.mkdir()
             problems = run_case(spec, work)
@@ -509,7 +582,7 @@ def campaign(kind: str, n: int, seed: int = 0, *, seeds_dir: Path | None = None,
                 log(f"progress: {kind} {spec['case'] + 1} cases done, {len(findings)} findings")
     finally:
         shutil.rmtree(base, ignore_errors=True)
-    return {"kind": kind, "cases": n, "findings": findings}
+    return {"kind": kind, "cases": n - first, "first": first, "findings": findings}
 
 
 def save_reproducer(spec: dict) -> Path:
@@ -526,7 +599,9 @@ def corpus_case(path: Path, seeds: dict) -> dict:
     """The case that replays one corpus file against good seeds."""
     data = path.read_bytes()
     what = path.name.split("_", 1)[0]
-    if what in ("fit", "diagnose"):
+    if what == "diagnose-charts":
+        return {"kind": what, "text": data.decode("utf-8", "surrogateescape"), "label": path.name}
+    if what in ("fit", "fit-deep", "diagnose"):
         return {"kind": what, "partners": seeds["dng"][0][1], "data": data, "label": path.name}
     if what == "profile":
         return {"kind": "convert", "image": seeds["image"][0], "data": seeds["image"][0].read_bytes(),
@@ -541,6 +616,7 @@ if __name__ == "__main__":
     sys.path.insert(0, str(ROOT))
     what, count = sys.argv[1], int(sys.argv[2])
     start = int(sys.argv[3]) if len(sys.argv) > 3 else 0
+    first = int(sys.argv[4]) if len(sys.argv) > 4 else 0   # run cases first..count-1 of the campaign
     import time
 
     began = time.time()
@@ -549,6 +625,7 @@ if __name__ == "__main__":
     jax.config.update("jax_compilation_cache_dir", os.environ.get("G2R_FUZZ_JAX_CACHE", "/tmp/g2r_fuzz_jax_cache"))
     reuse = os.environ.get("G2R_FUZZ_SEEDS")
     result = campaign(what, count, start, save_findings=True, seeds_dir=Path(reuse) if reuse else None,
-                      log=lambda line: print(line, flush=True))
-    print(json.dumps({"kind": what, "cases": count, "seed": start, "findings": len(result["findings"]),
+                      log=lambda line: print(line, flush=True), first=first)
+    print(json.dumps({"kind": what, "cases": result["cases"], "first": first, "seed": start,
+                      "findings": len(result["findings"]),
                       "seconds": round(time.time() - began)}), flush=True)

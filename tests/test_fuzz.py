@@ -85,7 +85,8 @@ def test_attack_campaign(kind):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("kind, share", [("fit", 1.0), ("fit-deep", 1.0), ("convert", 1 / 3), ("diagnose", 0.01)])
+@pytest.mark.parametrize("kind, share", [("fit", 1.0), ("fit-deep", 1.0), ("convert", 1 / 3), ("diagnose", 0.01),
+                                         ("diagnose-charts", 1 / 3)])
 def test_campaign(tmp_path_factory, kind, share):
     n = max(3, int(int(os.environ.get("G2R_FUZZ_CASES", "300")) * share))
     result = fh.campaign(kind, n, seed=12, seeds_dir=tmp_path_factory.mktemp("seeds"))

@@ -67,6 +67,7 @@ def document():
     (lambda d: d["effects"].update(clip_level=-1), "effects.clip_level"),
     (lambda d: d["effects"].update(shading=[[-3.0, 0.0]] * 4), "effects.shading"),
     (lambda d: d["effects"].update(row_noise_std=-0.1), "effects.row_noise_std"),
+    (lambda d: d["effects"].update(column_noise_std=1), "effects.column_noise_std"),
     (lambda d: d["illuminants"].update(means=[[-0.5, 0.5]] * len(d["illuminants"]["means"])), "illuminants.means"),
     (lambda d: d["illuminants"].update(weights=[]), "illuminants.weights"),
     (lambda d: d["exposure"].update(log2_std="wide"), "exposure.log2_std"),

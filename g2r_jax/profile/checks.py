@@ -15,7 +15,8 @@ illuminant means (r/g, b/g) in [0.001, 1000]; exposure log2 mean within +-20, st
 ISO in (0, 1e7], shot and read in [0, 1]; effects: black + pedestal within [0, white), clip level
 in (0, 2], channel gains in (0, 10], shading gain 1 + a1 r^2 + a2 r^4 positive for r in [0, 1]
 (entries within +-10), defects at non-negative integer positions with values in [0, 1], row and
-column noise std in [0, 1].
+column noise std in [0, 0.1] (a tenth of the range between black and white: at 1, half of a mid-grey
+image's columns were clipped to 0 DN).
 """
 
 from __future__ import annotations
@@ -33,6 +34,8 @@ from g2r_jax.io.tag_checks import (
     MAX_LEVEL,
     MAX_MATRIX_ENTRY,
     MIN_RANGE_DN)
+
+MAX_BANDING_STD = 0.1   # row and column offsets' std, normalised
 
 MIN_ISO, MAX_ISO = 1.0, 1e7   # noise.iso and noise.iso_range
 
@@ -216,4 +219,4 @@ def check_document(document, source: str = "<profile>") -> None:
             if np.any(table[:, 2] < 0) or np.any(table[:, 2] > 1):
                 c.fail("effects.defects", "values must lie in [0, 1] (normalised)")
     for key in ("row_noise_std", "column_noise_std"):
-        c.numbers(effects.get(key), f"effects.{key}", low=0, high=1, optional=True)
+        c.numbers(effects.get(key), f"effects.{key}", low=0, high=MAX_BANDING_STD, optional=True)
