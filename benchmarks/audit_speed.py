@@ -9,7 +9,9 @@ Runs, each a new `python -m g2r_jax.cli.diagnose` process (interpreter start and
 included), with its own empty compilation cache in a temporary folder:
 1. one file, cold cache (every XLA program compiled, as on a user's first run);
 2. one file, warm cache (every later run; the command keeps compilations on disk);
-3. COPIES files, warm cache: the same DNG linked COPIES times into one folder (only one real
+3. one file, warm cache, with a second job on the machine: a process spinning on one core (as a
+   training job's data loader or a second command would), started before and stopped after;
+4. COPIES files, warm cache: the same DNG linked COPIES times into one folder (only one real
    12-MP frame is at hand; statistics cost per file, so copies time the per-file work honestly,
    though identical files make every cross-validation fold fit the same parameters).
 Prints the one-file and COPIES-file times side by side with the first finding of each.
@@ -72,6 +74,14 @@ def main(argv=None):
         warm, report = audit(one, args.profile, cache, one)
         rows.append(("1 file, warm cache", warm, first(report)))
         print(f"{rows[-1][0]}: {warm:.1f} s, first finding {rows[-1][2]}", flush=True)
+        spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+        try:
+            busy, report = audit(one, args.profile, cache, one)
+        finally:
+            spinner.kill()
+            spinner.wait()
+        rows.append(("1 file, warm cache, a second job running", busy, first(report)))
+        print(f"{rows[-1][0]}: {busy:.1f} s, first finding {rows[-1][2]}", flush=True)
         if args.copies > 1:
             elapsed, report = audit(many, args.profile, cache, many)
             rows.append((f"{args.copies} files (copies), warm cache", elapsed, first(report)))

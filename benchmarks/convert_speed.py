@@ -22,7 +22,8 @@ Sections:
                one calibrated ISO and without noise) written uncompressed and as lossless JPEG:
                size for tiles of 256 (what is written), 512, 1024 and the whole frame, encode
                CPU time, LibRaw's decode CPU time.
-- diagnose:    `audit_speed.py --copies 1`: g2r-diagnose on the real 12-MP GoPro DNG, cold and warm.
+- diagnose:    `audit_speed.py --copies 1`: g2r-diagnose on the real 12-MP GoPro DNG, cold, warm, and
+               warm with a second job spinning on one core.
 Every section prints the load average before and after it: the figures are only comparable
 within one run on one machine.
 """
