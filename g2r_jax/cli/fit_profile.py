@@ -261,25 +261,15 @@ def colour_outlier(infos, candidates):
 
 def remove_stale_temporaries(output: Path) -> int:
     """Remove the temporaries ('.<name>.<random>.tmp', see `g2r_jax.io.atomic`) of `output` that a
-    run killed while writing it left beside it; their count. A run stopped by SIGINT or SIGTERM
-    removes its own; SIGKILL cannot."""
+    killed run left beside it; their count."""
     import glob
 
-    from g2r_jax.io.atomic import is_temporary_name
+    from g2r_jax.io.atomic import remove_temporaries
 
-    removed = 0
     try:
-        entries = list(output.parent.glob(f".{glob.escape(output.name)}.*"))
+        return remove_temporaries(list(output.parent.glob(f".{glob.escape(output.name)}.*")))
     except OSError:
         return 0
-    for entry in entries:
-        if is_temporary_name(entry.name) and entry.is_file():
-            try:
-                entry.unlink()
-                removed += 1
-            except OSError:
-                pass
-    return removed
 
 
 def main(argv=None) -> int:

@@ -58,6 +58,21 @@ def is_temporary_name(name: str) -> bool:
     return name.startswith(".") and name.endswith(TEMPORARY_SUFFIX) and name.count(".") >= 3
 
 
+def remove_temporaries(entries) -> int:
+    """Delete those of `entries` (paths) that are temporaries of `atomic_write_bytes` left by a
+    killed run (SIGKILL: a run stopped by SIGINT or SIGTERM removes its own); their count.
+    Entries that vanish or cannot be deleted are skipped."""
+    removed = 0
+    for entry in entries:
+        if is_temporary_name(entry.name) and entry.is_file():
+            try:
+                entry.unlink()
+                removed += 1
+            except OSError:
+                pass
+    return removed
+
+
 def atomic_write_bytes(path, data, *, after_rename=None) -> None:
     """Write `data` to `path` atomically.
 

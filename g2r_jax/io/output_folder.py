@@ -18,7 +18,7 @@ import json
 import os
 from pathlib import Path
 
-from g2r_jax.io.atomic import COMMIT_LOCK, OutputError, atomic_write_bytes, is_temporary_name, output_problem
+from g2r_jax.io.atomic import COMMIT_LOCK, OutputError, atomic_write_bytes, output_problem, remove_temporaries
 
 __all__ = ["OutputFolder", "check_output_folder", "open_folders", "manifest_bytes", "MANIFEST_NAME", "LOCK_NAME"]
 
@@ -68,7 +68,7 @@ class OutputFolder:
         self.written = 0
         self._lock_handle = None
         self._lock(command)
-        self.removed_temporaries = self._remove_temporaries()
+        self.removed_temporaries = remove_temporaries(self.path.rglob(".*"))
         self.records = self._rebuild()
         listed = {self.key(r) for r in self.records}
         self.unlisted = sorted(name for name in self._relative("*.dng") if name not in listed)
@@ -113,17 +113,6 @@ class OutputFolder:
                 relative = Path(os.path.relpath(candidate.resolve(), self.path.resolve()))
                 return None if relative.parts[:1] == ("..",) else relative.as_posix()
         return None
-
-    def _remove_temporaries(self) -> int:
-        removed = 0
-        for entry in self.path.rglob(".*"):
-            if is_temporary_name(entry.name) and entry.is_file():
-                try:
-                    entry.unlink()
-                    removed += 1
-                except OSError:
-                    pass
-        return removed
 
     def _rebuild(self) -> list:
         if not self.manifest.exists():
