@@ -63,6 +63,7 @@ def one_run(job):
     profile_name, cause, seed, n_files, height, width = job[:6]
     sizes = job[6] if len(job) > 6 and job[6] else [(height, width)]
     n_dark = job[7] if len(job) > 7 else DARK_FRAMES
+    exposure_in_spreads = len(job) > 8 and job[8]
     from g2r_jax.audit import diagnose, scenes, simulate, synthetic
 
     base = load_base(profile_name)
@@ -71,6 +72,11 @@ def one_run(job):
     truth, magnitude = base, {}
     if cause:
         magnitude = synthetic.random_magnitude(cause, rng)
+        if cause == "exposure_distribution" and exposure_in_spreads:
+            # the same shift measured in the profile's own spread: 0.45-0.75 stops were drawn for the
+            # demo camera's 0.25-stop spread (1.8-3 spreads); the shipped cameras' spread is ~1 stop
+            spread = max(float(base.exposure.log2_std), 0.25)
+            magnitude = {"stops": magnitude["stops"] * spread / 0.25}
         truth = synthetic.inject(base, cause, height=height, width=width, **magnitude)
     measured = []
     for k, (h, w) in enumerate(sizes):   # files cycle through the sizes (mixed sizes in one audit)
@@ -134,6 +140,9 @@ def main(argv=None):
     parser.add_argument("--clean-seeds", type=int, default=20, help="clean sets per profile (default 20)")
     parser.add_argument("--clean-only", action="store_true", help="only clean sets (false alarms): --seeds 0")
     parser.add_argument("--dark-frames", type=int, default=DARK_FRAMES, help="dark frames in every measured set")
+    parser.add_argument("--exposure-in-spreads", action="store_true",
+                        help="exposure_distribution: shifts of 1.8-3 of the profile's exposure spread (log2_std, "
+                             "at least 0.25 stops) instead of 0.45-0.75 stops")
     parser.add_argument("--charts", type=int, default=0,
                         help="instead of DNG files: audit sets of this many chart images for colour_matrix "
                              "(profiles reduced to their D65 matrix; e.g. --charts 30 --profile Canon600D)")
@@ -156,8 +165,8 @@ def main(argv=None):
             jobs += [(name, c, s, args.charts) for c in causes for s in range(args.seeds)]
             jobs += [(name, None, 1000 + s, args.charts) for s in range(clean)]
         else:
-            jobs += [(name, c, s, args.files, args.height, args.width, sizes, args.dark_frames)
-                     for c in causes for s in range(args.seeds)]
+            jobs += [(name, c, s, args.files, args.height, args.width, sizes, args.dark_frames,
+                      args.exposure_in_spreads) for c in causes for s in range(args.seeds)]
             jobs += [(name, None, 1000 + s, args.files, args.height, args.width, sizes, args.dark_frames)
                      for s in range(clean)]
     what = (f"{args.charts} chart images" if args.charts else
