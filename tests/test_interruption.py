@@ -93,3 +93,27 @@ def test_a_second_signal_and_a_later_run_complete_the_folder(inputs, tmp_path):
     records = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()]
     assert sorted(Path(r["output"]).name for r in records) == sorted(p.name for p in out.glob("*.dng"))
     assert len(records) == 48 > len(first)
+
+
+@pytest.mark.parametrize("other", ["SIGALRM", "SIGUSR1"])
+def test_other_signals_with_a_python_handler_do_not_stop_the_command(other):
+    """Python writes the number of every signal that has a Python-level handler to the wakeup fd
+    the watcher reads: a caller's SIGALRM (the fuzz harness's per-case alarm) ended the command
+    with 'stopped (SIGTERM)' and exit 130. Only SIGINT and SIGTERM stop it; others reach their
+    handler and the command goes on."""
+    script = f"""
+import os, signal, sys, time
+from g2r_jax.cli.interruption import StopOnSignal
+seen = []
+signal.signal(signal.{other}, lambda number, frame: seen.append(number))
+with StopOnSignal("g2r-test"):
+    os.kill(os.getpid(), signal.{other})
+    time.sleep(0.5)
+    print("alive", seen == [signal.{other}], flush=True)
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(5)
+print("not stopped", flush=True)
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert done.stdout.split() == ["alive", "True"]
+    assert done.returncode == 130 and "g2r-test: stopped (SIGTERM)" in done.stderr

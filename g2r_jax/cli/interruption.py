@@ -73,12 +73,24 @@ class StopOnSignal:
         return False
 
     def _watch(self, reader):
-        try:
-            data = reader.recv(1)
-        except OSError:
-            data = b""
-        if data and self._sockets is not None:
-            self.stop_now(data[0])
+        """Wait for SIGINT or SIGTERM. The wakeup fd receives the number of every signal that has a
+        Python-level handler (a caller's SIGALRM or SIGUSR1 too): those are passed on to the wakeup
+        fd that was there before, if any, and do not stop the command."""
+        while True:
+            try:
+                data = reader.recv(64)
+            except OSError:
+                data = b""
+            if not data or self._sockets is None:
+                break
+            stop = next((number for number in data if number in (signal.SIGINT, signal.SIGTERM)), None)
+            if stop is not None:
+                self.stop_now(stop)
+            if self._wakeup is not None and self._wakeup >= 0:
+                try:
+                    os.write(self._wakeup, data)
+                except OSError:
+                    pass
         reader.close()                        # the context was left: the watcher ends
 
     def stop_now(self, number: int) -> None:
