@@ -393,3 +393,45 @@ def test_canon_350d_tags_without_pixels():
     with pytest.raises(DngError, match="canon_350d_header_only.dng"):
         read_dng_pixels(path)
     assert sha(path) == before
+
+
+def test_tifffile_log_records_stay_ours_when_threads_read_at_once(tmp_path, capfd):
+    """DNGs read on several threads at once (as g2r-diagnose does): each reader installed and
+    removed its own collector of tifffile's log records and saved and restored the logger's
+    propagation, so interleaved readers left the 'tifffile' logger without propagation and without
+    handler: its records ('<TiffTag.fromfile> raised TiffFileError(...)') went raw to stderr
+    (diagnose campaign, seed 1: 29 of 214 cases). Now no record reaches stderr and the logger's
+    state is restored."""
+    import logging
+    import struct
+    import threading
+    import warnings
+
+    data = bytearray(write_dng_bytes(random_mosaic(), make_info()))
+    assert data[:2] == b"II"
+    ifd = struct.unpack_from("<I", data, 4)[0]
+    struct.pack_into("<H", data, ifd + 2 + 12 + 2, 32767)   # second entry: an invalid data type
+    path = tmp_path / "damaged.dng"
+    path.write_bytes(bytes(data))
+    logger = logging.getLogger("tifffile")
+    before = (logger.propagate, list(logger.handlers))
+    barrier = threading.Barrier(6)
+
+    def read_many():
+        barrier.wait()
+        for _ in range(30):
+            try:
+                read_dng_info(path)
+            except DngError:
+                pass
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # our own one-line warning naming the file
+        threads = [threading.Thread(target=read_many) for _ in range(6)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    assert (logger.propagate, list(logger.handlers)) == before
+    logger.error("a record after the readers: handled as before")   # no handler, propagation on
+    assert "TiffTag" not in capfd.readouterr().err

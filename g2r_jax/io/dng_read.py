@@ -318,16 +318,27 @@ def read_dng_info(path) -> DngInfo:
 
 
 class _LogCollector(logging.Handler):
-    """Collects tifffile's log records of the calling thread (they would print to stderr)."""
+    """tifffile's log records, each kept by the reader of the thread that caused it (they would
+    print to stderr). One collector for the process, installed while any thread reads: readers on
+    several threads each saving and restoring the logger's state left it without propagation and
+    without handler, and tifffile's records reached stderr raw (g2r-diagnose, whose DNGs are
+    read on threads)."""
 
     def __init__(self):
         super().__init__(logging.DEBUG)
-        self.thread = threading.get_ident()
-        self.messages = []
+        self.lock = threading.Lock()
+        self.readers, self.saved_propagate = {}, True   # thread id -> its list of messages
 
     def emit(self, record):
-        if record.thread == self.thread and record.levelno >= logging.WARNING:
-            self.messages.append(record.getMessage())
+        messages = self.readers.get(record.thread)
+        if messages is None:   # a thread that is not reading a DNG: its record goes where it would have
+            if self.saved_propagate:
+                logging.getLogger().handle(record)
+        elif record.levelno >= logging.WARNING:
+            messages.append(record.getMessage())
+
+
+_COLLECTOR = _LogCollector()
 
 
 @contextlib.contextmanager
@@ -335,15 +346,25 @@ def _library_log(path):
     """tifffile logs damage it skips over (e.g. '<tifffile.TiffPages @1712> invalid offset to
     first page'); those records become (at most) one warning of ours naming the file."""
     logger = logging.getLogger("tifffile")
-    collector = _LogCollector()
-    logger.addHandler(collector)
-    propagate = logger.propagate
-    logger.propagate = False
+    thread, messages = threading.get_ident(), []
+    with _COLLECTOR.lock:
+        if not _COLLECTOR.readers:
+            _COLLECTOR.saved_propagate = logger.propagate
+            logger.addHandler(_COLLECTOR)
+            logger.propagate = False
+        outer = _COLLECTOR.readers.get(thread)
+        _COLLECTOR.readers[thread] = messages
     try:
-        yield collector.messages
+        yield messages
     finally:
-        logger.removeHandler(collector)
-        logger.propagate = propagate
+        with _COLLECTOR.lock:
+            if outer is None:
+                del _COLLECTOR.readers[thread]
+            else:
+                _COLLECTOR.readers[thread] = outer
+            if not _COLLECTOR.readers:
+                logger.removeHandler(_COLLECTOR)
+                logger.propagate = _COLLECTOR.saved_propagate
 
 
 def _plain(message) -> str:
