@@ -20,7 +20,9 @@ traceback or a JAX/equinox text, a failing input is named, the batch goes on (th
 converted or fitted), no partial or temporary outputs, inputs unchanged, bounded memory.
 Run with `python tests/fuzz_harness.py fit|fit-deep|convert|diagnose|diagnose-charts N [SEED [FIRST]]`
 (cases FIRST..N-1 of the campaign of SEED; docs/pages/validation/reliability.md) or through
-tests/test_fuzz.py.
+tests/test_fuzz.py. Run `convert` in pieces of at most 4,000 cases per process: each case's new
+profile structure or image size keeps a compiled program in the process (7 memory mappings each),
+and about 9,000 reach the kernel's mapping limit, where XLA aborts.
 """
 
 from __future__ import annotations
