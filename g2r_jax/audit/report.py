@@ -20,6 +20,7 @@ import numpy as np
 
 from g2r_jax.io.atomic import atomic_write_bytes
 from g2r_jax.audit import wording
+from g2r_jax.audit.causes.base import position_labels
 
 
 def _plain(value):
@@ -129,8 +130,6 @@ def _params_words(params: dict, limit: int = 8) -> str:
 
 # ----------------------------------------------------------------------------- plots
 
-_POSITIONS = ("(0,0)", "(0,1)", "(1,0)", "(1,1)")
-
 
 def _position_colours(labels) -> list:
     """A plot colour per CFA position: red, green (two shades), blue after the labels' colour."""
@@ -157,7 +156,7 @@ def _nlf_plot(ax, data):
         ok = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
         scale = span[p] ** 2
         ax.errorbar(100 * x[ok], y[ok] * scale, yerr=[(y[ok] - lo[ok]) * scale, (hi[ok] - y[ok]) * scale],
-                    fmt="o", ms=3, color=colours[p], label=f"measured, {(data.get('labels') or _POSITIONS)[p]} "
+                    fmt="o", ms=3, color=colours[p], label=f"measured, {(data.get('labels') or position_labels())[p]} "
                                                             "(95 % interval)")
     grid = np.geomspace(1e-4, 1.0, 100)
     for key, style, words in (("model_curve", "--", "profile's model"), ("extended_curve", "-", "extended profile")):

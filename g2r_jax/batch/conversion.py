@@ -182,7 +182,7 @@ def _predicted_group(path: Path, transfer: str, buckets, max_pixels):
     suffix = path.suffix.lower()
     try:
         if suffix == ".png":
-            width, height, depth, _, claimed, present = image_headers.png_claim(path, path.read_bytes())
+            width, height, depth, _, claimed, present = image_headers.png_claim(path)
             image_headers.check_pixel_budget(path, width, height, max_pixels)
             if claimed > PLAUSIBLE_PNG_RATIO * max(present, 1):
                 return None

@@ -66,7 +66,6 @@ def quiet_libraries(name: str, debug: bool = False):
         logging.basicConfig(level=logging.WARNING)
         yield
         return
-    os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")   # XLA's C++ logging
     root = logging.getLogger()
     handler = _Collect()
     root.addHandler(handler)

@@ -127,21 +127,25 @@ def _png_expected_bytes(width: int, height: int, depth: int, colour: int, interl
     return total
 
 
-def png_claim(path, data: bytes) -> tuple:
+def png_claim(path, data: bytes | None = None) -> tuple:
     """(width, height, bit depth, colour type, filtered bytes the header claims, compressed IDAT
-    bytes present) of a PNG held in `data`, from its chunk headers only (no inflating); DngError
+    bytes present) of a PNG, from its chunk headers only (no inflating): from `data` when given
+    (the file already read), else from the file, seeking past each chunk's content. DngError
     when it has no valid IHDR."""
     import io
 
-    width, height, depth, colour, interlace = _png_header(Path(path), io.BytesIO(data))
-    present, at = 0, 8
-    while at + 8 <= len(data):
-        length, kind = struct.unpack(">I4s", data[at:at + 8])
-        if kind == b"IDAT":
-            present += min(length, len(data) - at - 8)
-        elif kind == b"IEND":
-            break
-        at += 12 + length
+    with (io.BytesIO(data) if data is not None else open(path, "rb")) as handle:
+        width, height, depth, colour, interlace = _png_header(Path(path), handle)
+        size = handle.seek(0, io.SEEK_END)
+        present, at = 0, 8
+        while at + 8 <= size:
+            handle.seek(at)
+            length, kind = struct.unpack(">I4s", handle.read(8))
+            if kind == b"IDAT":
+                present += min(length, size - at - 8)
+            elif kind == b"IEND":
+                break
+            at += 12 + length
     return width, height, depth, colour, _png_expected_bytes(width, height, depth, colour, interlace), present
 
 

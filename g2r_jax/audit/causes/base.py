@@ -194,10 +194,13 @@ class Cause:
                 self.discrepancy(held_files, resimulated, profile, seed=seed))
 
 
+CFA_PLACES = ("(0,0)", "(0,1)", "(1,0)", "(1,1)")   # (row, column) in the 2 x 2 CFA tile
+
+
 def position_labels(profile=None) -> list:
     """['R (0,0)', 'G (0,1)', ...]: the colour of each place in the 2 x 2 CFA tile (row, column),
     from the profile's CFA pattern; the places alone without a profile."""
-    places = ["(0,0)", "(0,1)", "(1,0)", "(1,1)"]
+    places = list(CFA_PLACES)
     pattern = getattr(profile, "cfa_pattern", None)
     if pattern is None:
         return places
