@@ -252,7 +252,7 @@ def illuminant_model_for(chromaticities, colour_model, kind: str = "auto", seed:
 
 def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model: str = "auto",
                 noise: _sensor.NoiseModel | None = None, chromaticities=None, provenance: str = "",
-                seed: int = 0, dtype=np.float32) -> SensorProfile:
+                seed: int = 0, dtype=np.float32, notes: list | None = None) -> SensorProfile:
     """Fit a SensorProfile from DNG tags.
 
     **Arguments:** `infos`: tags of the camera's DNGs (`g2r_jax.io.dng_read.read_dng_info`);
@@ -261,7 +261,12 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
     integer raws goes through `sensor.noise.quantisation.without_quantisation` first; the files'
     own noise does here); `chromaticities`: (N, 2) illuminants in
     (r/g, b/g) to use instead of the files' as-shot neutrals; `provenance`: where the numbers
-    came from (stored in the profile).
+    came from (stored in the profile); `notes`: a list that gets one line per thing a user should
+    know (the dark frames found and what was taken from them).
+
+    Dark frames among `infos` (recognised from their pixels, `g2r_jax.sensor.dark_frames`) give
+    the read noise of their ISO and the black level, and take no part in the colour, illuminant
+    and exposure fits (they have no scene and no meaningful as-shot neutral).
 
     **Returns:** a `SensorProfile`. Raises DngError for files without usable colour tags.
     """
@@ -276,6 +281,13 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
         if sorted(info.calibration_illuminants) != sorted(reference.calibration_illuminants):
             raise DngError(info.path, f"calibration illuminants {info.calibration_illuminants} differ from "
                                       f"{reference.path}'s {reference.calibration_illuminants}")
+    dark_frames, scenes = [], infos
+    if noise is None or chromaticities is None:
+        from g2r_jax.sensor.dark_frames import find_dark_frames
+
+        scenes, dark_frames = find_dark_frames(infos)
+        infos = scenes or infos    # only dark frames: their tags still give the colour and levels
+        reference = infos[0]
     try:
         cfa = parse_cfa(reference.cfa_pattern)
     except ValueError as error:
@@ -293,10 +305,16 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
         from g2r_jax.sensor.noise.fallback import noise_and_source
         from g2r_jax.sensor.noise.quantisation import without_quantisation
 
-        noise, noise_source = noise_and_source(infos, cfa, dtype)
+        noise, noise_source = noise_and_source(scenes, cfa, dtype, dark_frames=dark_frames)
         # NoiseProfile tags and pixel measurements are of integer raws: rounding counted once
         noise = without_quantisation(noise, black, white)
         noise_source += "; read term without the 1/12 DN^2 rounding, which the simulation adds"
+    effects = _sensor.no_effects(dtype)
+    if dark_frames:
+        effects, line = _with_dark_frame_black(effects, dark_frames, black, dtype)
+        noise_source = "; ".join(filter(None, [noise_source, line]))
+        if notes is not None:
+            notes.append(dark_frame_note(dark_frames, used_for_noise="read term from" in noise_source))
     opcodes = tuple(sorted((k, bytes(v).hex()) for k, v in (reference.opcode_lists or {}).items()))
     info = ProfileInfo(name=name, unique_camera_model=reference.unique_camera_model or reference.model or name,
                        make=reference.make, model=reference.model,
@@ -309,4 +327,51 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
         cfa_pattern=jnp.asarray(cfa, jnp.int32), black_level=jnp.asarray(black, dtype),
         white_level=jnp.asarray(white, dtype),
         baseline_exposure=jnp.asarray(baseline, dtype), colour=colour_model, illuminants=illuminants,
-        exposure=_sensor.fixed_exposure(dtype), noise=noise, effects=_sensor.no_effects(dtype), info=info)
+        exposure=_sensor.fixed_exposure(dtype), noise=noise, effects=effects, info=info)
+
+
+PEDESTAL_MIN_DN = 0.1   # a dark frames' black this far (and 3 standard errors) from the tag becomes a pedestal
+
+
+def _with_dark_frame_black(effects, dark_frames, black, dtype):
+    """(effects with the dark frames' black pedestal where they put black away from the tags'
+    median `black`, a provenance line or ""). The pedestal is the pixel-weighted mean level of all
+    dark frames minus the tag per CFA site, kept where it exceeds PEDESTAL_MIN_DN and 3 standard
+    errors (between frames when there are 3 or more: a dark level drifts with temperature)."""
+    from g2r_jax.profile import schema as _profile
+
+    means = np.stack([stats.mean for _, stats in dark_frames])
+    counts = np.stack([stats.count for _, stats in dark_frames])
+    variances = np.stack([stats.variance for _, stats in dark_frames])
+    offset = (counts * means).sum(axis=0) / counts.sum(axis=0) - black
+    se = np.sqrt((variances / counts).sum(axis=0)) / len(dark_frames)
+    if len(dark_frames) >= 3:
+        se = np.maximum(se, means.std(axis=0, ddof=1) / np.sqrt(len(dark_frames)))
+    if not np.any((np.abs(offset) >= PEDESTAL_MIN_DN) & (np.abs(offset) > 3 * se)):
+        return effects, ""
+    pedestal = offset
+    effects = _profile.replace(effects, black_pedestal=jnp.asarray(pedestal, dtype))
+    return effects, ("black pedestal from the dark frames: " + " ".join(f"{v:+.2f}" for v in pedestal)
+                     + " DN per CFA site above the BlackLevel tags")
+
+
+def dark_frame_note(dark_frames, *, used_for_noise: bool) -> str:
+    """One line for the user: how many dark frames, what was taken from them."""
+    from g2r_jax.sensor.noise.fallback import dark_frames_by_iso
+
+    names = [Path(info.path).name for info, _ in dark_frames]
+    shown = ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
+    by_iso = dark_frames_by_iso(dark_frames)
+    sigma = "; ".join(f"ISO {iso:g}: " + " ".join(f"{np.sqrt(v):.2f}" for v in found.variance_dn2)
+                      for iso, found in sorted(by_iso.items()))
+    banding = max(float(np.max(found.banding_share)) for found in by_iso.values())
+    hot = max(found.hot_fraction for found in by_iso.values())
+    what = ("took the read noise per CFA site from them" if used_for_noise
+            else "left them out of the colour and illuminant fits (the noise came from elsewhere)")
+    extra = []
+    if banding >= 0.1:
+        extra.append(f"{banding:.0%} of their variance is row/column banding, simulated as pixel noise")
+    if hot > 0:
+        extra.append(f"{hot:.2g} of their pixels hot, left out")
+    return (f"{len(names)} dark frame(s) ({shown}): {what} (sd {sigma} DN)"
+            + "".join(f"; {e}" for e in extra) + "; they take no part in the colour and illuminant fits")

@@ -15,6 +15,14 @@ Issue 8: DNGs without NoiseProfile (e.g. Canon 350D conversions) or with an all-
   (files without an ISO count as 100). Nothing usable at all: a noiseless model at the files'
   ISOs, with a loud warning.
 
+Dark frames (`g2r_jax.sensor.dark_frames`, issue 29) give the read term of their ISO directly:
+it replaces the read term of the tags or of the measurement at that ISO, and the measured shot
+term is refitted with the read term held there (`measure_pooled(fixed_read=...)`). Dark frames
+never enter the pooled flat blocks: their blocks' means are noise, and the bins they fall in
+(those whose mean noise lifted above 2^-11 of the range) put read-noise variance at a signal
+that is not there, lowering the fitted intercept by shot x that signal (x0.84 at ISO 1600 on the
+S20 FE-like sensor of `benchmarks/read_noise_dark_frames.py`).
+
 One warning line names the files concerned; `source` (for the profile's provenance) says where
 the noise came from.
 """
@@ -57,12 +65,14 @@ def _levels(info):
     return black, float(info.white_level)
 
 
-def measure_pooled(infos, *, n_bootstrap: int = 50):
+def measure_pooled(infos, *, n_bootstrap: int = 50, fixed_read=None):
     """(shot (4,), read (4,)) per tile position measured from the pixels of several DNGs of one
     ISO and one black/white level, their flat blocks pooled into one noise level function (the
     audit's estimator, `estimation.estimate_noise_level_function`, on the blocks of every file:
     small files have too few flat blocks each, not together), or None when no file decodes or
-    the pooled blocks are too few; and the [(file name, reason)] of the files that failed."""
+    the pooled blocks are too few; and the [(file name, reason)] of the files that failed.
+    `fixed_read` (4,), normalised with the rounding in it (e.g. from dark frames): the read term,
+    only the shot term is fitted (`shot_with_read_held`)."""
     from g2r_jax.io.dng_read import read_dng_pixels
     from g2r_jax.sensor.noise.estimation import to_normalised_planes
 
@@ -81,6 +91,9 @@ def measure_pooled(infos, *, n_bootstrap: int = 50):
     estimate = _estimation.estimate_noise_level_function(blocks[0].concatenate(*blocks[1:]),
                                                          clip_low=-black / (white - black), n_bootstrap=n_bootstrap)
     shot, read = _extension.fit_shot_read(estimate, floor_variance=0.0)
+    if fixed_read is not None:
+        read = np.asarray(fixed_read, np.float64)
+        shot = shot_with_read_held(estimate, read)
     if not (np.all(np.isfinite(shot)) and np.all(np.isfinite(read))):
         names = ", ".join(Path(i.path).name for i in infos)
         return None, problems + [(names, f"too few flat regions to measure the noise "
@@ -90,11 +103,45 @@ def measure_pooled(infos, *, n_bootstrap: int = 50):
     return (shot, read), problems
 
 
-def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = True):
+def shot_with_read_held(estimate, read) -> np.ndarray:
+    """(4,) shot term of variance = shot x + read with `read` (4,) given, fitted to a
+    `NoiseLevelEstimate`'s bins by least squares on the relative residual (weights 1 / (variance x
+    log SE), as `extension.fit_shot_read`), floored at 0; NaN where a position has no bin."""
+    shot = np.full(4, np.nan)
+    for p in range(4):
+        ok = estimate.valid()[p] & (estimate.lower[p] > 0) & (estimate.signal[p] > 0)
+        if not ok.any():
+            continue
+        x, v = estimate.signal[p, ok], estimate.variance[p, ok]
+        se = np.maximum(np.log(estimate.upper[p, ok] / estimate.lower[p, ok]) / (2 * 1.96), 1e-3)
+        w = 1.0 / (v * se) ** 2
+        shot[p] = max(float(np.sum(w * x * (v - read[p])) / np.sum(w * x * x)), 0.0)
+    return shot
+
+
+def dark_frames_by_iso(dark_frames) -> dict:
+    """{ISO: DarkFrameReadNoise} of [(info, DarkFrameStatistics)] (`dark_frames.find_dark_frames`),
+    each ISO's frames pooled at the median levels of their tags."""
+    from g2r_jax.sensor.dark_frames import read_from_dark_frames
+
+    groups = {}
+    for info, stats in dark_frames:
+        groups.setdefault(float(info.iso) if info.iso else 100.0, []).append((info, stats))
+    out = {}
+    for iso, members in groups.items():
+        black = np.median(np.stack([_levels(i)[0] for i, _ in members]), axis=0)
+        white = float(np.median([_levels(i)[1] for i, _ in members]))
+        out[iso] = read_from_dark_frames([s for _, s in members], black, white)
+    return out
+
+
+def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = True, dark_frames=()):
     """(NoiseModel, source) for a profile fitted from `infos`; see the module docstring.
 
-    `measure=False` skips the pixel measurement (tags only). `source` is one sentence for the
-    profile's provenance."""
+    `measure=False` skips the pixel measurement (tags only). `dark_frames`: [(info,
+    DarkFrameStatistics)] of the folder's dark frames (not among `infos`), whose read term
+    replaces that of their ISO. `source` is one sentence for the profile's provenance."""
+    dark = dark_frames_by_iso(dark_frames)
     tag_rows, measured_rows, floored_rows, kinds, problems = {}, {}, {}, {}, []
     to_measure = {}
     for info in infos:
@@ -112,7 +159,7 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
             problems.extend((Path(i.path).name, "pixels not measured") for i in group)
             unmeasured.extend(group)
             continue
-        measured, failed = measure_pooled(group)
+        measured, failed = measure_pooled(group, fixed_read=dark[iso].read if iso in dark else None)
         problems.extend(failed)
         if measured is not None:
             # one row per file measured, so that the per-ISO median weighs files, not groups
@@ -135,6 +182,12 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
         rows.setdefault(iso, values)
     for iso, values in floored_rows.items():
         rows.setdefault(iso, values)
+    # the dark frames' read term for every row of their ISO (tags' shot kept; a measured shot was
+    # fitted with it held); with no other file at all, dark frames alone give rows without shot noise
+    used_dark = {iso: found for iso, found in dark.items() if iso in rows or not infos}
+    for iso, found in used_dark.items():
+        rows[iso] = ([np.stack([row[:, 0], found.read], axis=1) for row in rows[iso]] if iso in rows
+                     else [np.stack([np.zeros(4), found.read], axis=1)])
     bad = {k: v for k, v in kinds.items() if k != "ok"}
     n_measured = sum(len(v) for iso, v in measured_rows.items() if iso not in tag_rows)
     n_floored = sum(len(v) for iso, v in floored_rows.items() if iso not in tag_rows and iso not in measured_rows)
@@ -168,4 +221,16 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
                      f"(g2r_jax.noise_estimation, S x + O per CFA position)")
     if n_floored:
         parts.append(f"degenerate NoiseProfile of {n_floored} file(s) with O raised to 1/12 DN^2")
+    if used_dark:
+        n_dark = sum(found.n_frames for found in used_dark.values())
+        parts.append(f"read term from {n_dark} dark frame(s) (ISO {', '.join(f'{i:g}' for i in sorted(used_dark))}; "
+                     f"g2r_jax.sensor.dark_frames: variance per CFA site, hot pixels left out)")
+    if used_dark and not infos:
+        warnings.warn(f"only dark frames ({sum(f.n_frames for f in used_dark.values())}): their read noise is "
+                      "used, but no file with light gives the shot noise; the profile simulates NO SHOT NOISE",
+                      stacklevel=2)
+    unused = sorted(set(dark) - set(used_dark))
+    if unused:
+        warnings.warn(f"dark frames at ISO {', '.join(f'{i:g}' for i in unused)} not used: no other file of that "
+                      "ISO gives a shot term to go with their read noise", stacklevel=2)
     return model, "noise: " + "; ".join(parts) + f" (ISO {', '.join(f'{i:g}' for i in isos)})"
