@@ -47,7 +47,7 @@ def matrix_conditions(neutral, profile, recipe: str = "dng"):
 
     # 4. Colour space transform: linear sRGB -> white-balanced camera RGB for that white.
     if recipe == "published":
-        srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera_published(cct, profile.colour)
+        srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera_published(neutral, profile.colour)
     else:
         srgb_to_wb_camera = matrix_srgb_to_white_balanced_camera(xy, neutral, profile.colour)
     return {"neutral": neutral, "xy": xy, "cct": cct, "converged": converged, "srgb_to_wb_camera": srgb_to_wb_camera}
@@ -145,7 +145,8 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
     if noise:
         mosaic = _sensor.add_noise(conditions["noise_key"], mosaic, conditions["noise_shot"], conditions["noise_read"],
                                    level_knots=profile.noise.level_knots, level_variance=conditions.get("noise_level"),
-                                   correlation_kernel=profile.noise.correlation_kernel, valid_shape=valid_shape)
+                                   correlation_kernel=profile.noise.correlation_kernel, valid_shape=valid_shape,
+                                   correlation_levels=(profile.noise.correlation_knots, profile.noise.correlation_weight))
     effect_parameters = profile.effects if effects else _sensor.no_effects()
     if effects:
         mosaic = _sensor.apply_readout_effects(conditions["readout_key"], mosaic, profile.effects)
