@@ -16,7 +16,7 @@ import numpy as np
 
 from g2r_jax.io.dng_info import DngError
 from g2r_jax.batch.conversion import file_key
-from g2r_jax.audit import black_evidence, bursts, evidence, gain, loading, simulate, stats
+from g2r_jax.audit import black_evidence, bursts, evidence, gain, loading, scene_pedestal, simulate, stats
 from g2r_jax.audit.causes import REGISTRY
 from g2r_jax.audit.scenes import scene_set
 from g2r_jax.audit.vocabulary import CAUSES, UNEXPLAINED
@@ -149,6 +149,8 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         found = stats.file_statistics(mosaic, info, profile, with_outliers=with_outliers, seed=seed + index,
                                       nlf_tiles=evidence.tiles_per_half(len(items)), pedestal_dn=pedestal_dn)
         found["item"] = index
+        found["pedestal_dn"] = np.resize(np.asarray(profile.effects.black_pedestal if pedestal_dn is None
+                                                    else pedestal_dn, np.float64), 4)   # the black it is measured from
         return found
 
     measured_stats = []
@@ -163,18 +165,28 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
             measured_stats.append(result)
     if not measured_stats:
         raise DngError(loading.folder_of(items), "no usable measured DNG files")
+    sources = items
+
+    def measured_again(files, black_dn):
+        """The files' statistics measured from another black (DN above the tag), bursts included."""
+        with ThreadPoolExecutor(max(1, min(MEASURED_WORKERS, len(sources), _cores()))) as pool:
+            files = list(pool.map(lambda f: statistics_of((f["item"], sources[f["item"]]), black_dn), files))
+        return files, with_bursts(files, black_dn)
+
+    def with_bursts(files, black_dn):
+        units, groups = independent_files(files)
+        for group in groups:
+            say(f"photon transfer over a burst of {len(group)} frames")
+            first = files[group[0]]
+            first["temporal"] = burst_noise([sources[files[i]["item"]] for i in group], first, profile, black_dn)
+        return units, groups
+
     pedestal = measured_black(measured_stats, profile)
     if pedestal is not None:   # scene-independent evidence of another black: measure from it
         say("black level differs from the profile's: statistics measured from the measured black")
-        with ThreadPoolExecutor(max(1, min(MEASURED_WORKERS, len(items), _cores()))) as pool:
-            measured_stats = list(pool.map(lambda f: statistics_of((f["item"], items[f["item"]]), pedestal),
-                                           measured_stats))
-    units, groups = independent_files(measured_stats)
-    for group in groups:
-        say(f"photon transfer over a burst of {len(group)} frames")
-        first = measured_stats[group[0]]
-        first["temporal"] = burst_noise([items[measured_stats[i]["item"]] for i in group], first, profile,
-                                        pedestal)
+        measured_stats, (units, groups) = measured_again(measured_stats, pedestal)
+    else:
+        units, groups = with_bursts(measured_stats, None)
     items = [f["name"] for f in measured_stats]
     shapes = [f["shape"] for f in (units or measured_stats)]
     with_lens = lens_shading_in(measured_stats)
@@ -266,6 +278,29 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         files = evidence_of(cause)
         top["gain"] = gain.cross_validate(cause, files, current_stats, extended, simulate_stats,
                                           folds=min(folds, len(files)), seed=seed)
+        rival = (scene_pedestal.weigh(top, files, current_stats, extended, folds=folds, seed=seed)
+                 if cause.name in PEDESTAL_RIVALS and not black_files and "black_level" in {c.name for c in remaining}
+                 else None)
+        if rival is not None and rival["verdict"] == "black_level":
+            # a pedestal explains the difference better: keep it, measure the files from it, test the rest again
+            say(f"a black pedestal of {rival['pedestal_dn']:.1f} DN explains the {cause.name} difference better")
+            black = by_name["black_level"]
+            remaining.remove(black)
+            remaining.append(cause)
+            done.append(pedestal_finding(black, top, rival, extended))
+            extended = black.apply(extended, done[-1]["params"])
+            measured_stats, (units, groups) = measured_again(measured_stats, np.full(4, rival["pedestal_dn"]))
+            current_stats = simulate_stats(extended)
+            continue
+        if rival is not None:   # the data cannot tell the pedestal from this cause: name neither
+            say(f"the {cause.name} difference could as well be a black pedestal: not fitted")
+            words = f"{top['evidence']}; or {rival['evidence']}: the two cannot be told apart, {scene_pedestal.DECIDES}"
+            unexplained.append({"statistic": top["statistic"], "candidate": cause.name, "alternative": "black_level",
+                                "score": top["score"], "evidence": words, "decide_with": scene_pedestal.DECIDES})
+            done.append(dict(top, cause=UNEXPLAINED, candidate=cause.name, source=cause.name, kept=False,
+                             alternative="black_level", decide_with=scene_pedestal.DECIDES, evidence=words,
+                             pedestal=rival))
+            continue
         if top["gain"]["after"] < top["gain"]["before"]:
             top["params"] = cause.fit(files, current_stats, extended, seed=seed)
             top["kept"] = True
@@ -302,6 +337,25 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         "simulated_size": list(sizes[0][0]), "simulated_sizes": [[h, w, count] for (h, w), count in sizes],
         "timing": timing, "profile": extended,
     }
+
+
+PEDESTAL_RIVALS = ("noise_model", "exposure_distribution")   # findings a black pedestal also explains (scene_pedestal)
+
+
+def pedestal_finding(black, top, rival, profile) -> dict:
+    """The black_level finding of a pedestal inferred from the scenes (`scene_pedestal.weigh`),
+    with the held-out gain of its noise discrepancy; `top` is the finding it explains."""
+    pedestal = np.full(4, rival["pedestal_dn"])
+    difference = pedestal - np.asarray(profile.effects.black_pedestal, np.float64)
+    return {"cause": black.name, "significant": True, "score": top["score"], "p": top["p"],
+            "magnitude": abs(rival["offset_fraction"]), "tolerance": black.tolerance,
+            "statistic": ("the noise curve and brightness of the scenes, measured from a black above the tag "
+                          "(no dark frames or optical-black pixels in the set)"),
+            "evidence": f"{rival['evidence']}; it explains the {top['cause']} difference ({top['evidence']})",
+            "difference": difference.tolist(), "difference_dn": difference.tolist(), "explains": top["cause"],
+            "scene_evidence": True, "closed_form": True, "tested": True, "gain": rival["gain"], "kept": True,
+            "params": {"black_pedestal_dn": pedestal.tolist(), "offset_fraction": rival["offset_fraction"],
+                       "from": "scene statistics (noise curve; brightness checked)"}}
 
 
 def measured_black(files, profile):

@@ -266,6 +266,16 @@ def brightness(planes, r2, clip) -> np.ndarray:
     return np.array([levels.mean()])
 
 
+def centre_quantiles(planes) -> np.ndarray:
+    """(9,) the 30th-70th percentiles of the image centre's signal that `brightness` averages in
+    log2, in linear units: a constant added to every pixel moves each by exactly that constant,
+    so the brightness the file would have from another black is known without measuring again
+    (`audit.scene_pedestal`)."""
+    step = _stride(planes)
+    r2 = radial_r2(planes.shape[1:], step=step)
+    return np.quantile(planes[:, ::step, ::step][:, r2[0] < 0.35], np.linspace(0.3, 0.7, 9))
+
+
 def noise_correlation(planes) -> np.ndarray:
     """(1,) log of robust var(s2) / var(s1) along rows, mean of planes, where s1 = a[j+1] - 2 a[j]
     + a[j-1] and s2 = a[j+2] - 2 a[j] + a[j-2] are second differences at lags 1 and 2.
@@ -441,7 +451,8 @@ def file_statistics(mosaic, info, profile, *, with_outliers: bool = True, seed: 
         "quantisation": evidence.quantisation_variance(black, white),
         "iso": float(iso), "green": green_ratio(planes, greens, clip),
         "shading": shading_profile(shading_planes, clip) - gain_map, "gain_map_shading": gain_map,
-        "brightness": brightness(planes, None, clip), "noise_corr": noise_correlation(planes if _stride(planes) == 1 else evidence.tile_halves(planes)[0]),
+        "brightness": brightness(planes, None, clip), "centre_quantiles": centre_quantiles(planes),
+        "noise_corr": noise_correlation(planes if _stride(planes) == 1 else evidence.tile_halves(planes)[0]),
         "outliers": outliers(planes, clip) if with_outliers else None,
         "neutral": None if neutral is None else np.asarray(neutral, np.float64),
         "shape": tuple(np.shape(mosaic)), "name": str(getattr(info, "path", "")), "span": span,

@@ -46,6 +46,35 @@ def demo_profile(*, seed: int = 0, n_illuminants: int = 40, dtype=np.float32) ->
                          calibration_illuminants=(17, 21), provenance="synthetic (g2r_jax.audit.synthetic)"))
 
 
+def levels_replaced(profile: SensorProfile, black: float, white: float) -> SensorProfile:
+    """`profile` with another BlackLevel (every CFA position) and WhiteLevel, the noise model kept in
+    normalised units: e.g. a NikonD5200-like camera of black 600, white 16383 (issue 29), whose
+    shipped profile says 0 and 15892."""
+    return _profile.replace(profile, black_level=jnp.full(4, float(black), profile.black_level.dtype),
+                            white_level=jnp.asarray(float(white), profile.white_level.dtype))
+
+
+def denoised_above(mosaic, info, level: float, strength: float) -> np.ndarray:
+    """The raw of a camera that denoises in-camera above a signal level (phones, lossy raw
+    codecs; issue 29): in each CFA plane, pixels whose 3 x 3 same-colour mean lies above `level`
+    (fraction of the range above the BlackLevel tag) move towards that mean by `strength`
+    (0: untouched, 1: replaced); rounded and clipped to [0, WhiteLevel] as a raw file is."""
+    raw = np.asarray(mosaic, np.float64).copy()
+    black = np.resize(np.asarray(info.black_level, np.float64).reshape(-1), 4)
+    white = float(info.white_level)
+    for p, (dy, dx) in enumerate(((0, 0), (0, 1), (1, 0), (1, 1))):
+        plane = raw[dy::2, dx::2]
+        rows, cols = plane.shape
+        padded = np.pad(plane, 1, mode="reflect")
+        mean = np.zeros_like(plane)
+        for a in range(3):
+            for b in range(3):
+                mean += padded[a:a + rows, b:b + cols] / 9.0
+        pulled = (mean - black[p]) / (white - black[p]) > level
+        plane[pulled] += strength * (mean[pulled] - plane[pulled])
+    return np.clip(np.rint(raw), 0, white).astype(np.uint16)
+
+
 def _effects(profile, **changes):
     return _profile.replace(profile, effects=_profile.replace(profile.effects, **changes))
 

@@ -79,6 +79,10 @@ def sentence(f: dict) -> str:
             where = f"{abs(float(np.mean(dn))):.2f} DN {'above' if np.mean(dn) > 0 else 'below'}"
         else:
             where = f"{_list(dn, '{:+.2f}')} DN (per CFA position) away from"
+        if f.get("scene_evidence"):
+            return (f"The sensor's black sits {where} where the profile puts it, inferred from the scenes: their noise "
+                    "curve is the profile's shifted by that offset, and their brightness agrees (no dark frames or "
+                    "optical-black pixels to measure it on; add some to confirm it).")
         return f"The sensor's black sits {where} where the profile puts it, measured on pixels that see no light."
     if cause == "noise_model":
         w = f.get("worst")
@@ -133,6 +137,9 @@ def action(f: dict, report: dict) -> str:
         how = ("it lowers the discrepancy on data it was not fitted on" if checked else
                "it lowers the discrepancy on the one file it was fitted on; audit more files to check it")
         return f"Fixed by the fitted extension ({how}); {where}."
+    if f["cause"] == "unexplained" and f.get("decide_with"):
+        return (f"Not fitted: a black pedestal explains this difference as well as {f['candidate']} does, and a "
+                f"wrong cause is worse than none; {f['decide_with']}.")
     if f["cause"] == "unexplained" and f.get("candidate"):
         return (f"The {f['candidate']} extension did not help on files it was not fitted on, so the profile is "
                 "left as it is; the difference is real but its cause is not one the audit can fit.")

@@ -96,9 +96,10 @@ class BlackLevel(Cause):
         return self._rms(held_files, profile, held_key), self._rms(held_files, extended, held_key)
 
     def plot(self, measured, simulated, profile, extended=None):
-        values = self.vectors([f for f in measured if f.get("black") is not None], profile)
-        if not len(values):
+        files = [f for f in measured if f.get("black") is not None]
+        if not files:   # a pedestal inferred from the scenes (`scene_pedestal`): no black to plot
             return None
+        values = self.vectors(files, profile)
         pedestal = np.asarray(profile.effects.black_pedestal, np.float64)
         return {"kind": "strip", "measured": values.tolist(), "simulated": [pedestal.tolist()],
                 "unit": self.unit, "labels": self.component_labels(4, profile), "simulated_label": "the profile's black",
