@@ -38,10 +38,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--calibration", type=Path, metavar="DNG|JSON",
                         help="DNG (or profile JSON) giving the colour matrices, CFA and levels (with --illuminants)")
     parser.add_argument("--illuminant-model", default="auto",
-                        choices=["auto", "gaussian", "mixture", "locus", "prior", "prior-night", "prior-day-night"],
-                        help="auto: Gaussian + convex hull with >= 10 illuminants, else 'prior' (the camera-"
-                             "independent prior of measured day lights; -night / -day-night presets); 'locus': "
-                             "the A-D65 CCT locus of the calibration matrices (supplement S3)")
+                        choices=["auto", "kernel", "gaussian", "mixture", "locus", "prior", "prior-night",
+                                 "prior-day-night"],
+                        help="auto: 'kernel' from one measured illuminant on (a kernel density of the lights along "
+                             "the camera's Planckian locus, blended with the cross-camera prior; chosen by the "
+                             "downstream measurement of docs validation/illuminant_models), 'prior' without any; "
+                             "'gaussian': the published Gaussian + convex hull; 'mixture': Gaussians by BIC + hull; "
+                             "'prior': the camera-independent prior of measured day lights (-night / -day-night "
+                             "presets); 'locus': the A-D65 CCT locus of the calibration matrices (supplement S3)")
     parser.add_argument("--noise-table", type=Path, metavar="CSV",
                         help="noise calibration CSV (iso,cfa_channel_index,beta1_shot,beta2_read; DN incl. black)")
     parser.add_argument("--sensitivities", type=Path, metavar="FILE",
@@ -177,12 +181,16 @@ def body(args) -> int:
                                  infos[0].white_level)
         source += f"; noise from {args.noise_table.name}"
 
+    dark_frame_notes = []   # the last fit's lines on dark frames (`fit_profile(notes=...)`)
+
     def attempt(subset, chromaticities_subset):
         """Fit and validate with the loader's own checks (nothing is written yet)."""
+        notes = []
         fitted = fit_profile(subset, name=args.name or args.output.stem, illuminant_model=args.illuminant_model,
                              noise=noise, chromaticities=chromaticities_subset,
-                             provenance=f"g2r-fit-profile: {source}", seed=args.seed)
+                             provenance=f"g2r-fit-profile: {source}", seed=args.seed, notes=notes)
         validate_profile(fitted, args.output)
+        dark_frame_notes[:] = notes
         return fitted
 
     profile, first_error = None, None
@@ -225,6 +233,8 @@ def body(args) -> int:
         note = levels_from_infos(infos)[2]
         if note and not args.quiet:
             print(f"g2r-fit-profile: note: {one_line(note)}", file=sys.stderr)
+    for line in dark_frame_notes if not args.quiet else ():
+        print(f"g2r-fit-profile: note: {one_line(line)}", file=sys.stderr)
     if args.sensitivities:
         profile = _with_sensitivities(profile, args.sensitivities, args.sensitivities_camera, chromaticities, infos)
     removed = remove_stale_temporaries(args.output)
@@ -234,7 +244,16 @@ def body(args) -> int:
     save_profile(profile, args.output)
     print(f"g2r-fit-profile: wrote {args.output} ({profile.illuminants.kind} illuminant model, "
           f"{len(infos)} file(s); {len(failures)} failed)")
+    if not args.quiet:
+        print(f"g2r-fit-profile: illuminant model: {one_line(illuminant_reason(profile))}")
     return 1 if failures else 0
+
+
+def illuminant_reason(profile) -> str:
+    """Why the profile got its illuminant model and from how many lights (its provenance says)."""
+    from g2r_jax.profile.fitting import ILLUMINANTS_PROVENANCE
+
+    return profile.info.provenance.rpartition(ILLUMINANTS_PROVENANCE)[2] or profile.illuminants.kind
 
 
 def colour_outlier(infos, candidates):

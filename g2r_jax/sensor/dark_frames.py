@@ -12,7 +12,8 @@ the level bins' spread bias (`g2r_jax.sensor.noise.fallback`).
   (a clipped frame's moments are biased) and at most `OUTLIER_FRACTION` lie beyond `OUTLIER_SIGMAS`
   (hot pixels are rare; a light in a night scene is not), and its 8 x 8 block means (outliers set
   to the centre) spread no more than pixel noise allows: robust sd at most `STRUCTURE_RATIO` x sd / 8
-  and the 0.1-99.9 percentile range at most 10 x that. Row or column banding passes (a block mean
+  and the 0.1-99.9 percentile range at most 10 x that, sd from differences of horizontal
+  neighbours of the site (which a scene's structure does not raise). Row or column banding passes (a block mean
   of 8 rows carries a row offset's variance / 8, which the ratio allows).
 - `dark_frame_statistics(mosaic)`: per site the mean and the variance about the frame's own mean,
   hot pixels left out (iterated clipping at `OUTLIER_SIGMAS`, whose truncation of Gaussian values
@@ -94,7 +95,9 @@ def is_dark_frame(mosaic, black_level, white_level) -> bool:
             return False
         clean = np.where(keep, plane, centre)[:h, :w]
         blocks = clean.reshape(h // BLOCK, BLOCK, w // BLOCK, BLOCK).mean(axis=(1, 3)).ravel()
-        allowed = STRUCTURE_RATIO * np.sqrt(variance) / BLOCK
+        # pixel noise from neighbour differences: a scene's structure (and row banding) cancels there
+        _, difference_variance, _ = clipped_moments(np.diff(clean, axis=1))
+        allowed = STRUCTURE_RATIO * np.sqrt(difference_variance / 2) / BLOCK
         q1, q3 = np.percentile(blocks, [25, 75])
         if (q3 - q1) / 1.349 > allowed or np.ptp(np.percentile(blocks, [0.1, 99.9])) > 10 * allowed:
             return False

@@ -65,18 +65,26 @@ def _levels(info):
     return black, float(info.white_level)
 
 
-def measure_pooled(infos, *, n_bootstrap: int = 50, fixed_read=None):
+BURST_PIXELS = 150_000_000   # the frames a burst check holds in memory at once (uint16: 300 MB)
+
+
+def measure_pooled(infos, *, n_bootstrap: int = 50, fixed_read=None, methods: list | None = None):
     """(shot (4,), read (4,)) per tile position measured from the pixels of several DNGs of one
     ISO and one black/white level, their flat blocks pooled into one noise level function (the
     audit's estimator, `estimation.estimate_noise_level_function`, on the blocks of every file:
     small files have too few flat blocks each, not together), or None when no file decodes or
     the pooled blocks are too few; and the [(file name, reason)] of the files that failed.
     `fixed_read` (4,), normalised with the rounding in it (e.g. from dark frames): the read term,
-    only the shot term is fitted (`shot_with_read_held`)."""
+    only the shot term is fitted (`shot_with_read_held`).
+
+    Files that form a static burst (`temporal.is_static_burst`: the same scene in every frame)
+    are measured over time instead (`temporal.fit_temporal_shot_read`): no scene texture, and a
+    read term unbiased at the low end; `methods` (a list) gets "temporal" or "flat blocks"."""
     from g2r_jax.io.dng_read import read_dng_pixels
+    from g2r_jax.sensor.noise import temporal as _temporal
     from g2r_jax.sensor.noise.estimation import to_normalised_planes
 
-    blocks, problems, levels = [], [], None
+    blocks, problems, levels, mosaics, held = [], [], None, [], 0
     for info in infos:
         try:
             mosaic = read_dng_pixels(info.path, info)
@@ -85,9 +93,21 @@ def measure_pooled(infos, *, n_bootstrap: int = 50, fixed_read=None):
             continue
         levels = levels or _levels(info)
         blocks.append(_estimation.block_statistics(to_normalised_planes(mosaic, *levels)))
+        held += mosaic.size
+        mosaics = mosaics + [mosaic] if mosaics is not None and held <= BURST_PIXELS else None
     if not blocks:
         return None, problems
     black, white = levels
+    if mosaics and _temporal.is_static_burst(mosaics):
+        shot, read = _temporal.fit_temporal_shot_read(mosaics, black, white)
+        if fixed_read is not None:
+            read = np.asarray(fixed_read, np.float64)
+        if np.all(np.isfinite(shot)) and np.all(np.isfinite(read)):
+            if methods is not None:
+                methods.append(f"temporal ({len(mosaics)} frames of one static scene)")
+            return (shot, read), problems
+    if methods is not None:
+        methods.append("flat blocks")
     estimate = _estimation.estimate_noise_level_function(blocks[0].concatenate(*blocks[1:]),
                                                          clip_low=-black / (white - black), n_bootstrap=n_bootstrap)
     shot, read = _extension.fit_shot_read(estimate, floor_variance=0.0)
@@ -153,13 +173,14 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
             continue
         # files of one ISO and one black/white level pool their flat blocks (`measure_pooled`)
         to_measure.setdefault((iso, tuple(_levels(info)[0]), _levels(info)[1]), []).append(info)
-    unmeasured = []
+    unmeasured, methods = [], []
     for (iso, _, _), group in to_measure.items():
         if not measure:
             problems.extend((Path(i.path).name, "pixels not measured") for i in group)
             unmeasured.extend(group)
             continue
-        measured, failed = measure_pooled(group, fixed_read=dark[iso].read if iso in dark else None)
+        measured, failed = measure_pooled(group, fixed_read=dark[iso].read if iso in dark else None,
+                                          methods=methods)
         problems.extend(failed)
         if measured is not None:
             # one row per file measured, so that the per-ISO median weighs files, not groups
@@ -218,7 +239,8 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
         parts.append(f"NoiseProfile tags of {n_tags} file(s)")
     if n_measured:
         parts.append(f"measured from the pixels of {n_measured} file(s) without a usable NoiseProfile "
-                     f"(g2r_jax.noise_estimation, S x + O per CFA position)")
+                     f"(S x + O per CFA position; {', '.join(sorted(set(methods)))}: g2r_jax.sensor.noise."
+                     f"{'temporal' if any(m.startswith('temporal') for m in methods) else 'estimation'})")
     if n_floored:
         parts.append(f"degenerate NoiseProfile of {n_floored} file(s) with O raised to 1/12 DN^2")
     if used_dark:
