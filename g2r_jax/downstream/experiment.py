@@ -1,0 +1,225 @@
+"""The paper's illuminant-estimation experiment on real images (Graphics2RAW, Seo et al. ICCV 2023,
+Table 2 and supplement Tables S1, S4, S6), with controls that split the gap to real training.
+
+Protocol: the real set's images are split into `folds` folds (a seeded permutation, image j in
+fold j mod k); for each fold, every row makes a training set, one estimator per row is trained on
+it and tested on the fold's real images (angular error, degrees). Synthetic rows make `n`
+training images from CG views; real controls repeat the training images up to `n`.
+
+Rows (`ROWS`):
+- upi: UPI (Brooks et al. CVPR 2019) on the CG views: random camera matrix and gains;
+- published: the published recipe (`recipe='published'`), lights fitted to the training files;
+- shipped: g2r_jax with the profile as given (no light of this camera's scenes);
+- fitted: g2r_jax, the illuminant model fitted to the training files' lights (what a folder of
+  DNGs gives `g2r-fit-profile`: their as-shot neutrals);
+- single: g2r_jax fitted from the light of one training file (one DNG);
+- real: the real training files;
+- real_own_light: control: the training files rendered to sRGB at their measured white and
+  made RAW again under that light (what the round trip costs by itself);
+- real_other_light: the same, each relit to the measured light of a random other training file
+  (what relighting through the DNG matrices costs);
+- real_profile_light: the same, relit to lights drawn from the fitted model (what the
+  illuminant model costs);
+- other_content: real images of other scenes (another camera's, rendered to sRGB at their
+  white) made RAW for this camera with the fitted model (content that is real but not this set's).
+The content's share of the gap is fitted - real_profile_light; the profile's is
+real_profile_light - real.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Callable, Optional
+
+import numpy as np
+
+from g2r_jax.downstream import metrics as _metrics
+from g2r_jax.downstream.real_sets import RealSet
+from g2r_jax.downstream import training_sets as _sets
+
+ROWS = {
+    "upi": "UPI (Brooks et al. 2019)",
+    "published": "published recipe, lights fitted",
+    "shipped": "g2r_jax, profile as given",
+    "fitted": "g2r_jax, lights fitted",
+    "single": "g2r_jax, one DNG",
+    "real": "real training files",
+    "real_own_light": "control: real, own light",
+    "real_other_light": "control: real, another's light",
+    "real_profile_light": "control: real, lights from the model",
+    "other_content": "control: other real scenes",
+}
+SYNTHETIC_CG_ROWS = ("upi", "published", "shipped", "fitted", "single")
+CONTROL_ROWS = ("real_own_light", "real_other_light", "real_profile_light", "other_content")
+DEFAULT_ROWS = tuple(r for r in ROWS if r != "other_content")
+
+
+@dataclasses.dataclass
+class ExperimentResult:
+    """Errors per (row, estimator): one array of per-image errors (all folds) per seed."""
+
+    camera: str
+    rows: tuple
+    estimators: tuple
+    seeds: tuple
+    errors: dict
+    seconds: float = 0.0
+    notes: list = dataclasses.field(default_factory=list)
+
+    def summary(self, row: str, estimator: str) -> dict:
+        """Error statistics pooled over seeds, plus the spread of the seeds' means."""
+        per_seed = self.errors[(row, estimator)]
+        pooled = _metrics.error_summary(np.concatenate(per_seed))
+        means = [float(np.mean(e)) for e in per_seed]
+        return {**pooled, "seed_means": means, "seed_min": min(means), "seed_max": max(means)}
+
+    def to_dict(self) -> dict:
+        return {"camera": self.camera, "rows": list(self.rows), "estimators": list(self.estimators),
+                "seeds": list(self.seeds), "seconds": self.seconds, "notes": self.notes,
+                "summary": {f"{r}/{e}": self.summary(r, e) for r in self.rows for e in self.estimators}}
+
+
+def fold_indices(n: int, k: int = 3, seed: int = 0) -> list[np.ndarray]:
+    """k folds of range(n): a seeded permutation, its j-th element in fold j mod k."""
+    permutation = np.random.default_rng(seed).permutation(n)
+    return [np.sort(permutation[i::k]) for i in range(k)]
+
+
+def fitted_illuminants(profile, illuminants: np.ndarray, kind: str = "auto", seed: int = 0):
+    """The profile with its illuminant model fitted to `illuminants` (N, 3) as `g2r-fit-profile`
+    fits it to a folder's as-shot neutrals."""
+    from g2r_jax.illuminants.distributions import neutral_to_chromaticity
+    from g2r_jax.profile.fitting import illuminant_model_for
+    from g2r_jax.profile.schema import replace
+
+    chromaticities = neutral_to_chromaticity(np.asarray(illuminants, np.float64))
+    return replace(profile, illuminants=illuminant_model_for(chromaticities, profile.colour, kind, seed))
+
+
+def _repeat_to(n: int, *arrays):
+    count = len(arrays[0])
+    reps = max(1, -(-n // count))
+    return [np.concatenate([a] * reps)[: max(n, count)] for a in arrays]
+
+
+class _Sets:
+    """Builds and caches each row's training set for one camera, fold and seed."""
+
+    def __init__(self, real: RealSet, profile, cg_linear, *, n, illuminant_model, other, single_light, lights):
+        self.real, self.profile, self.n, self.lights = real, profile, n, lights
+        self.cg_linear, self.illuminant_model, self.other = cg_linear, illuminant_model, other
+        self.single_light = single_light
+        self.cache = {}
+
+    def views(self, seed):
+        key = ("views", seed)
+        if key not in self.cache:
+            self.cache[key] = _sets.cg_views(self.cg_linear, self.n, seed)
+        return self.cache[key]
+
+    def srgb_views(self, seed):
+        key = ("srgb", seed)
+        if key not in self.cache:
+            self.cache[key] = _sets.linear_to_srgb_views(self.views(seed))
+        return self.cache[key]
+
+    def build(self, row: str, train: np.ndarray, fold: int, seed: int):
+        real = self.real
+        salt = 1000 * seed + 10 * fold
+        if row == "real":
+            return real.images[train], real.illuminants[train]
+        if row == "upi":
+            key = ("upi", seed)
+            if key not in self.cache:
+                self.cache[key] = _sets.upi_set(self.srgb_views(seed), seed + 1)
+            return self.cache[key]
+        if row == "shipped":
+            key = ("shipped", seed)
+            if key not in self.cache:
+                self.cache[key] = _sets.g2r_set(self.views(seed), self.profile, seed + 2)
+            return self.cache[key]
+        lights = real.illuminants[train]
+        if row == "single":
+            pick = np.random.default_rng(salt + 3).integers(len(train))
+            one = fitted_illuminants(self.profile, lights[pick:pick + 1], self.single_light)
+            return _sets.g2r_set(self.views(seed), one, salt + 3)
+        key = ("fitted", fold, seed)
+        if key not in self.cache:
+            folder = lights
+            if self.lights is not None and self.lights < len(lights):
+                folder = lights[np.random.default_rng(salt + 9).choice(len(lights), self.lights, replace=False)]
+            self.cache[key] = fitted_illuminants(self.profile, folder, self.illuminant_model, seed)
+        fitted = self.cache[key]
+        if row in ("fitted", "published"):
+            return _sets.g2r_set(self.views(seed), fitted, salt + 4, recipe="published" if row == "published" else "dng")
+        if row == "other_content":
+            if self.other is None:
+                raise ValueError("row other_content needs another real set and its profile (other=...)")
+            key = ("other_views",)
+            if key not in self.cache:
+                other_set, other_profile = self.other
+                self.cache[key] = _sets.real_to_linear_srgb(other_set.images, other_set.illuminants, other_profile)
+            views, = _repeat_to(self.n, self.cache[key])
+            return _sets.g2r_set(views, fitted, salt + 5)
+        views = _sets.real_to_linear_srgb(real.images[train], lights, self.profile)
+        views, own = _repeat_to(self.n, views, lights)
+        if row == "real_own_light":
+            return _sets.g2r_set(views, self.profile, salt + 6, neutrals=own)
+        if row == "real_other_light":
+            other = own[np.random.default_rng(salt + 7).permutation(len(own))]
+            return _sets.g2r_set(views, self.profile, salt + 7, neutrals=other)
+        if row == "real_profile_light":
+            return _sets.g2r_set(views, fitted, salt + 8)
+        raise ValueError(f"unknown row {row!r}; expected one of {', '.join(ROWS)}")
+
+
+def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROWS, estimators=("cnn", "moments"),
+                          seeds=(0, 1, 2), n: int = 1000, folds: int = 3, illuminant_model: str = "auto",
+                          single_light: str = "auto", lights: Optional[int] = None, other: Optional[tuple] = None,
+                          progress: Optional[Callable[[str], None]] = None) -> ExperimentResult:
+    """Train illuminant estimators on each row's training set, test them on the real images.
+
+    **Arguments:** `real`: the real set (`RealSet`); `profile`: the camera's `SensorProfile` (its
+    colour model and sensor; its illuminant model is the 'shipped' row's); `cg_images`: CG
+    images, sRGB-coded uint8 (H, W, 3) or linear float32 (see `training_sets.linear_images`), at
+    least 128 pixels on the shorter side; `rows`, `estimators` (see `ROWS`,
+    `estimators.ESTIMATORS`); `seeds`: each seed draws new CG views, lights, noise and estimator
+    initialisations (the folds stay); `n`: synthetic training images per set;
+    `illuminant_model`: the kind fitted for 'fitted', 'published', 'real_profile_light' and
+    'other_content' (`g2r-fit-profile --illuminant-model`); `single_light`: the kind for 'single';
+    `lights`: fit those rows' model to this many training files' lights only (a random subset:
+    the number-of-DNGs ablation, supplement Table S6); `other`: (RealSet, SensorProfile) of other
+    real scenes for 'other_content'.
+
+    **Returns:** an `ExperimentResult`.
+    """
+    from g2r_jax.downstream.estimators import train_estimator
+
+    unknown = [r for r in rows if r not in ROWS]
+    if unknown:
+        raise ValueError(f"unknown rows {unknown}; expected some of {', '.join(ROWS)}")
+    if len(real.images) < 2 * folds:
+        raise ValueError(f"{real.name}: {len(real.images)} real images are too few for {folds} folds")
+    say = progress or (lambda message: None)
+    linear = cg_images if cg_images and np.asarray(cg_images[0]).dtype == np.float32 else _sets.linear_images(cg_images)
+    start = time.perf_counter()
+    sets = _Sets(real, profile, linear, n=n, illuminant_model=illuminant_model, other=other,
+                 single_light=single_light, lights=lights)
+    errors = {(r, e): [] for r in rows for e in estimators}
+    fold_sets = fold_indices(len(real.images), folds)
+    for seed in seeds:
+        per_fold = {key: [] for key in errors}
+        for fold, test in enumerate(fold_sets):
+            train = np.setdiff1d(np.arange(len(real.images)), test)
+            for row in rows:
+                images, lights = sets.build(row, train, fold, seed)
+                for estimator in estimators:
+                    predict = train_estimator(estimator, images, lights, seed=1000 * seed + fold)
+                    per_fold[(row, estimator)].append(
+                        _metrics.angular_error_degrees(predict(real.images[test]), real.illuminants[test]))
+            say(f"{real.name}: seed {seed}, fold {fold + 1}/{folds} done ({time.perf_counter() - start:.0f} s)")
+        for key, parts in per_fold.items():
+            errors[key].append(np.concatenate(parts))
+    return ExperimentResult(camera=real.name, rows=tuple(rows), estimators=tuple(estimators), seeds=tuple(seeds),
+                            errors=errors, seconds=time.perf_counter() - start)

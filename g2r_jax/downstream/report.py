@@ -1,0 +1,110 @@
+"""The downstream result in words, tables and a plot: the rows side by side, the gap to real
+training split into the profile's share and the CG content's, and what differs in the content."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from g2r_jax.downstream.experiment import ROWS, ExperimentResult
+
+
+def decomposition(result: ExperimentResult, estimator: str) -> dict:
+    """The gap between training on g2r_jax's RAW of the CG images ('fitted') and on the real
+    files ('real'), split along the controls (mean errors, degrees; absent rows give None):
+    round trip (real_own_light - real), relighting (real_other_light - real_own_light),
+    illuminant model (real_profile_light - real_other_light), profile = real_profile_light -
+    real, content = fitted - real_profile_light."""
+    mean = {r: result.summary(r, estimator)["mean"] for r in result.rows}
+    get = mean.get
+
+    def difference(a, b):
+        return None if get(a) is None or get(b) is None else get(a) - get(b)
+
+    return {"gap": difference("fitted", "real"), "round_trip": difference("real_own_light", "real"),
+            "relighting": difference("real_other_light", "real_own_light"),
+            "illuminant_model": difference("real_profile_light", "real_other_light"),
+            "profile": difference("real_profile_light", "real"), "content": difference("fitted", "real_profile_light"),
+            "other_content": difference("other_content", "real_profile_light"),
+            "versus_upi": None if get("upi") is None or get("fitted") is None else 1 - get("fitted") / get("upi")}
+
+
+def table(result: ExperimentResult) -> str:
+    """Markdown table: one line per row, per estimator mean / median / best 25 % / worst 25 %
+    (pooled over seeds) and the range of the seeds' means."""
+    head = "| row | " + " | ".join(f"{e}: mean (seeds) | median | best 25 % | worst 25 %" for e in result.estimators) + " |"
+    rule = "|---|" + "---|---|---|---|" * len(result.estimators)
+    lines = [head, rule]
+    for row in result.rows:
+        cells = []
+        for e in result.estimators:
+            s = result.summary(row, e)
+            spread = f" ({s['seed_min']:.2f}-{s['seed_max']:.2f})" if len(result.seeds) > 1 else ""
+            cells.append(f"{s['mean']:.2f}{spread} | {s['median']:.2f} | {s['best25']:.2f} | {s['worst25']:.2f}")
+        lines.append(f"| {ROWS[row]} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def sentence(result: ExperimentResult, estimator: str, content_rows=None) -> str:
+    """One result sentence for the estimator: g2r_jax against UPI and real training, and where
+    the gap lies."""
+    mean = {r: result.summary(r, estimator)["mean"] for r in result.rows}
+    parts = []
+    ours = mean.get("fitted", mean.get("shipped"))
+    if ours is None:
+        return f"{estimator}: " + ", ".join(f"{ROWS[r]} {v:.2f} deg" for r, v in mean.items())
+    parts.append(f"an estimator ({estimator}) trained on g2r_jax RAW of the CG images errs {ours:.2f} deg "
+                 f"on the real files")
+    others = [f"{label} {mean[r]:.2f}" for r, label in (("upi", "UPI"), ("real", "trained on the real files"))
+              if r in mean]
+    if others:
+        parts[-1] += f" ({', '.join(others)})"
+    split = decomposition(result, estimator)
+    if split["gap"] is not None and split["profile"] is not None:
+        parts.append(f"of the {split['gap']:.2f} deg gap to real training, {split['profile']:.2f} is the profile "
+                     f"(colour and lights) and {split['content']:.2f} the CG content")
+        if content_rows and split["content"] > max(split["profile"], 0.0):
+            top = content_rows[0]
+            parts.append(f"the content statistic farthest from the real files: {top['description']} "
+                         f"({top['synthetic']:.3g} vs {top['real']:.3g})")
+    return "; ".join(parts) + "."
+
+
+def content_table(rows) -> str:
+    lines = ["| statistic | CG set (median) | real files (median) | distance (real robust std) |", "|---|---|---|---|"]
+    lines += [f"| {r['description']} | {r['synthetic']:.3g} | {r['real']:.3g} | {r['distance']:+.1f} |" for r in rows]
+    return "\n".join(lines)
+
+
+def plot(result: ExperimentResult, path) -> bool:
+    """Bar chart of the mean error per row and estimator (PNG, written atomically); False when
+    matplotlib is not installed."""
+    try:
+        import matplotlib
+    except ImportError:
+        return False
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from g2r_jax.io.atomic import atomic_write_bytes
+
+    fig, ax = plt.subplots(figsize=(8, 0.45 * len(result.rows) + 1.2))
+    height = 0.8 / len(result.estimators)
+    y = np.arange(len(result.rows))
+    for k, e in enumerate(result.estimators):
+        stats = [result.summary(r, e) for r in result.rows]
+        means = [s["mean"] for s in stats]
+        low = [s["mean"] - s["seed_min"] for s in stats]
+        high = [s["seed_max"] - s["mean"] for s in stats]
+        ax.barh(y + k * height, means, height, xerr=[low, high], label=e)
+    ax.set_yticks(y + 0.4 - height / 2, [ROWS[r] for r in result.rows])
+    ax.invert_yaxis()
+    ax.set_xlabel("mean angular error on the real files (degrees)")
+    ax.set_title(f"{result.camera}: illuminant estimators by training set")
+    ax.legend()
+    fig.tight_layout()
+    try:
+        atomic_write_bytes(Path(path), lambda handle: fig.savefig(handle, format="png", dpi=90))
+    finally:
+        plt.close(fig)
+    return True

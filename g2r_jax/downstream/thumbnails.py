@@ -1,0 +1,81 @@
+"""RAW mosaics and camera-RGB images -> the estimators' input: small linear camera-RGB thumbnails.
+
+The convention is the NUS set's as republished for learned colour constancy (Cheng, Prasad,
+Brown, JOSA A 2014; DMCC repository, see ../shared/data/PROVENANCE.md): black subtracted, scaled
+by the range, greens of a CFA tile averaged, area-averaged to 64 x 64, every saturated pixel
+zeroed (a clipped pixel carries no illuminant information; Barron, "Convolutional Color
+Constancy", ICCV 2015, Sec. 5 does the same), each image scaled to a maximum of 1.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+SIZE = 64
+SATURATED = 0.98   # of the range: at or above this a pixel counts as clipped
+
+
+def _tile_rgb(mosaics, cfa_pattern, black_level, white_level):
+    """(B, H, W) DN -> (B, H/2, W/2, 3) camera RGB in [0, 1] of the range, greens averaged."""
+    black = jnp.broadcast_to(jnp.asarray(black_level, jnp.float32).reshape(-1), (4,))
+    span = jnp.asarray(white_level, jnp.float32) - black
+    sites = jnp.stack([(mosaics[:, i::2, j::2] - black[2 * i + j]) / span[2 * i + j]
+                       for i in range(2) for j in range(2)], -1)                 # (B, H/2, W/2, 4)
+    membership = (jnp.asarray(cfa_pattern).reshape(4, 1) == jnp.arange(3)).astype(jnp.float32)   # (4, 3)
+    return sites @ (membership / membership.sum(0))
+
+
+def _reduce(rgb, size: int):
+    """(B, h, w, 3), h and w multiples of `size` -> area average and saturation mask at size x size."""
+    b, h, w, _ = rgb.shape
+    blocks = rgb.reshape(b, size, h // size, size, w // size, 3)
+    mean = blocks.mean((2, 4))
+    clipped = jnp.any(blocks >= SATURATED, axis=(2, 4, 5))
+    return jnp.where(clipped[..., None], 0.0, mean)
+
+
+def _unit_max(thumbs):
+    peak = jnp.max(thumbs, axis=(1, 2, 3), keepdims=True)
+    return jnp.where(peak > 0, thumbs / jnp.where(peak > 0, peak, 1.0), thumbs)
+
+
+@jax.jit
+def mosaic_thumbnails(mosaics, cfa_pattern, black_level, white_level):
+    """Mosaics (B, H, W) in DN, H/2 and W/2 multiples of 64 -> thumbnails (B, 64, 64, 3).
+
+    **Arguments:** `cfa_pattern` (4,) colour index per tile position, `black_level` scalar or (4,),
+    `white_level` scalar (a profile's fields). **Returns:** float32 thumbnails, saturated pixels 0,
+    each with maximum 1.
+    """
+    rgb = jnp.clip(_tile_rgb(jnp.asarray(mosaics, jnp.float32), cfa_pattern, black_level, white_level), 0.0, 1.0)
+    return _unit_max(_reduce(rgb, SIZE))
+
+
+def camera_rgb_thumbnail(rgb: np.ndarray) -> np.ndarray:
+    """One (h, w, 3) camera-RGB image in [0, 1] of the range, any size >= 64 x 64 -> (64, 64, 3).
+
+    Area average over a 64 x 64 grid of blocks whose edges are rounded to whole pixels (numpy;
+    for real files of any size), saturated blocks zeroed, maximum 1.
+    """
+    rgb = np.asarray(rgb, np.float32)
+    h, w, _ = rgb.shape
+    if h < SIZE or w < SIZE:
+        raise ValueError(f"image of {h} x {w} is smaller than the {SIZE} x {SIZE} thumbnail")
+    rows = np.linspace(0, h, SIZE + 1).round().astype(int)[:-1]
+    cols = np.linspace(0, w, SIZE + 1).round().astype(int)[:-1]
+    sums = np.add.reduceat(np.add.reduceat(rgb, rows, axis=0), cols, axis=1)
+    counts = np.outer(np.diff(np.r_[rows, h]), np.diff(np.r_[cols, w]))[..., None]
+    saturated = (rgb >= SATURATED).any(-1).astype(np.int32)
+    clipped = np.add.reduceat(np.add.reduceat(saturated, rows, axis=0), cols, axis=1) > 0
+    thumb = np.where(clipped[..., None], 0.0, sums / counts).astype(np.float32)
+    peak = thumb.max()
+    return thumb / peak if peak > 0 else thumb
+
+
+def mosaic_to_camera_rgb(mosaic: np.ndarray, cfa_pattern, black_level, white_level) -> np.ndarray:
+    """One mosaic (H, W) in DN -> (H/2, W/2, 3) camera RGB in [0, 1] of the range (numpy)."""
+    mosaic = np.asarray(mosaic)[: mosaic.shape[0] // 2 * 2, : mosaic.shape[1] // 2 * 2]
+    rgb = _tile_rgb(jnp.asarray(mosaic, jnp.float32)[None], cfa_pattern, black_level, white_level)[0]
+    return np.clip(np.asarray(rgb), 0.0, 1.0)
