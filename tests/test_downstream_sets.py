@@ -120,10 +120,11 @@ def test_content_statistics_name_what_differs():
     grey = (0.1 + 0.05 * rng.random((40, 64, 64, 1))) * np.ones(3) * lights[:, None, None, :]
     grey[:, 0, 0] = lights                                 # same brightest pixel: brightness is relative
     vivid = vivid / vivid.reshape(40, -1).max(1)[:, None, None, None]
-    rows = {r["statistic"]: r for r in content.compare((grey, lights), (vivid, lights))}
+    rows = {r["statistic"]: r for r in content.compare((grey, lights), (vivid, lights), (vivid, lights))}
     assert rows["chroma_spread"]["distance"] < -3
     assert rows["brightness"]["distance"] < -3
     assert abs(rows["zeroed_share"]["distance"]) < 1
+    assert rows["chroma_spread"]["control_distance"] == 0 and rows["chroma_spread"]["excess"] > 3
 
 
 def test_dng_folder_is_read_with_as_shot_labels_and_bad_files_named(tmp_path):

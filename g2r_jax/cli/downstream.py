@@ -106,7 +106,7 @@ def read_cg_images(paths, say) -> tuple[list, list]:
 
 def _run(args) -> int:
     from g2r_jax.downstream import content, experiment, real_sets, report
-    from g2r_jax.downstream.training_sets import g2r_set, cg_views
+    from g2r_jax.downstream.training_sets import cg_views, g2r_set, real_to_linear_srgb
     from g2r_jax.io.atomic import atomic_write_bytes
     from g2r_jax.io.dng_info import DngError
 
@@ -138,7 +138,9 @@ def _run(args) -> int:
                                               seeds=tuple(range(args.seeds)), n=args.n, folds=args.folds, progress=say)
     fitted = experiment.fitted_illuminants(profile, real.illuminants)
     synthetic = g2r_set(cg_views(cg, min(args.n, 300), 0), fitted, 0)
-    differences = content.compare(synthetic, (real.images, real.illuminants))
+    round_trip = g2r_set(real_to_linear_srgb(real.images, real.illuminants, profile), profile, 0,
+                         neutrals=real.illuminants)
+    differences = content.compare(synthetic, (real.images, real.illuminants), round_trip)
     document = {"camera": real.name, "label": real.label, "files": list(real.files),
                 "problems": [{"path": p, "reason": r} for p, r in problems], **result.to_dict(),
                 "decomposition": {e: report.decomposition(result, e) for e in estimators},

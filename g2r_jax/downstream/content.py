@@ -8,8 +8,9 @@ Statistics (each per image; thumbnails are linear camera RGB scaled to a maximum
 - `dark_share`: share of pixels below 2 % of the maximum (shadows where noise rules);
 - `zeroed_share`: share of pixels zeroed as saturated (or masked) in the thumbnail;
 - `contrast`: log2 of the ratio of the 95th to the 5th luminance percentile of lit pixels;
-- `chroma_spread`: standard deviation of the white-balanced pixels' log-chroma (log r/g, log b/g),
-  i.e. how colourful the scene's surfaces are under a neutral light;
+- `chroma_spread`: standard deviation of the white-balanced log-chroma (log r/g, log b/g) of
+  pixels above 5 % of the maximum (darker ones are mostly noise), i.e. how colourful the
+  scene's surfaces are under a neutral light;
 - `grey_world_bias`: angle (degrees) between the image's mean colour and its light: how far its
   average surface is from grey (the cue grey-world estimators rely on: Buchsbaum 1980).
 The distance between the sets is the difference of medians in units of the real set's robust
@@ -56,7 +57,8 @@ def image_statistics(images: np.ndarray, illuminants: np.ndarray) -> dict:
             continue
         low, high = np.percentile(values.mean(-1), [5, 95])
         contrast[i] = np.log2(high / max(low, _EPS))
-        balanced = np.maximum(values / lights[i], _EPS)
+        bright = values[values.mean(-1) >= 0.05]
+        balanced = np.maximum((bright if len(bright) >= 8 else values) / lights[i], _EPS)
         chroma = np.log(balanced[:, [0, 2]] / balanced[:, 1:2])
         spread[i] = float(np.sqrt(np.mean(np.var(chroma, axis=0))))
         mean = values.mean(0)
@@ -73,21 +75,30 @@ def _robust_std(values: np.ndarray) -> float:
     return max(1.4826 * float(np.median(np.abs(values - np.median(values)))), 1e-3 * (abs(np.median(values)) + 1e-3))
 
 
-def compare(synthetic: tuple, real: tuple) -> list[dict]:
+def compare(synthetic: tuple, real: tuple, control: tuple | None = None) -> list[dict]:
     """How far the synthetic set's content lies from the real set's, per statistic.
 
-    **Arguments:** `synthetic`, `real`: (images, illuminants) each. **Returns:** one dict per
-    statistic, largest distance first: name, description, synthetic and real medians, distance
-    (in the real set's robust standard deviations, signed).
+    **Arguments:** `synthetic`, `real`: (images, illuminants) each; `control`: optionally the
+    real images made RAW again by g2r_jax (their round trip), whose distance is what the
+    simulation alone moves a statistic: a CG statistic matters by how far it lies beyond it.
+    **Returns:** one dict per statistic, largest excess first: statistic, description, medians
+    (synthetic, real, control), distance and control_distance (in the real set's robust standard
+    deviations, signed), excess = |distance| - |control_distance|.
     """
-    ours, theirs = image_statistics(*synthetic), image_statistics(*real)
+    sets = {"synthetic": image_statistics(*synthetic), "real": image_statistics(*real)}
+    if control is not None:
+        sets["control"] = image_statistics(*control)
     rows = []
     for name, description in STATISTICS.items():
-        a, b = ours[name][np.isfinite(ours[name])], theirs[name][np.isfinite(theirs[name])]
-        if not len(a) or not len(b):
+        values = {k: v[name][np.isfinite(v[name])] for k, v in sets.items()}
+        if any(not len(v) for v in values.values()):
             continue
-        scale = _robust_std(b)
-        distance = (np.median(a) - np.median(b)) / scale if np.isfinite(scale) else float("nan")
-        rows.append({"statistic": name, "description": description, "synthetic": float(np.median(a)),
-                     "real": float(np.median(b)), "distance": float(distance)})
-    return sorted(rows, key=lambda r: -abs(r["distance"]) if np.isfinite(r["distance"]) else 0.0)
+        scale = _robust_std(values["real"])
+        medians = {k: float(np.median(v)) for k, v in values.items()}
+        distance = {k: (medians[k] - medians["real"]) / scale for k in medians}
+        row = {"statistic": name, "description": description, **medians, "distance": float(distance["synthetic"])}
+        if control is not None:
+            row["control_distance"] = float(distance["control"])
+        row["excess"] = abs(row["distance"]) - abs(row.get("control_distance", 0.0))
+        rows.append(row)
+    return sorted(rows, key=lambda r: -r["excess"] if np.isfinite(r["excess"]) else 0.0)

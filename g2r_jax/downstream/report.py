@@ -64,16 +64,23 @@ def sentence(result: ExperimentResult, estimator: str, content_rows=None) -> str
     if split["gap"] is not None and split["profile"] is not None:
         parts.append(f"of the {split['gap']:.2f} deg gap to real training, {split['profile']:.2f} is the profile "
                      f"(colour and lights) and {split['content']:.2f} the CG content")
-        if content_rows and split["content"] > max(split["profile"], 0.0):
+        if content_rows and split["content"] > max(split["profile"], 0.0) and content_rows[0]["excess"] > 1:
             top = content_rows[0]
-            parts.append(f"the content statistic farthest from the real files: {top['description']} "
-                         f"({top['synthetic']:.3g} vs {top['real']:.3g})")
+            parts.append(f"the CG content differs most from the real files in {top['description']}: "
+                         f"{top['synthetic']:.3g} against {top['real']:.3g} ({top['distance']:+.1f} robust std)")
     return "; ".join(parts) + "."
 
 
 def content_table(rows) -> str:
-    lines = ["| statistic | CG set (median) | real files (median) | distance (real robust std) |", "|---|---|---|---|"]
-    lines += [f"| {r['description']} | {r['synthetic']:.3g} | {r['real']:.3g} | {r['distance']:+.1f} |" for r in rows]
+    """Markdown table of `content.compare`: medians and distances in the real set's robust std."""
+    control = rows and "control" in rows[0]
+    head = "| statistic | CG set | real files | distance |" + (" real files made RAW again | its distance |" if control else "")
+    lines = [head, "|---|---|---|---|" + ("---|---|" if control else "")]
+    for r in rows:
+        line = f"| {r['description']} | {r['synthetic']:.3g} | {r['real']:.3g} | {r['distance']:+.1f} |"
+        if control:
+            line += f" {r['control']:.3g} | {r['control_distance']:+.1f} |"
+        lines.append(line)
     return "\n".join(lines)
 
 
@@ -94,8 +101,8 @@ def plot(result: ExperimentResult, path) -> bool:
     for k, e in enumerate(result.estimators):
         stats = [result.summary(r, e) for r in result.rows]
         means = [s["mean"] for s in stats]
-        low = [s["mean"] - s["seed_min"] for s in stats]
-        high = [s["seed_max"] - s["mean"] for s in stats]
+        low = [max(s["mean"] - s["seed_min"], 0.0) for s in stats]
+        high = [max(s["seed_max"] - s["mean"], 0.0) for s in stats]
         ax.barh(y + k * height, means, height, xerr=[low, high], label=e)
     ax.set_yticks(y + 0.4 - height / 2, [ROWS[r] for r in result.rows])
     ax.invert_yaxis()
