@@ -1,0 +1,459 @@
+"""Learned illuminant estimators for the downstream experiment: train on thumbnails, predict lights.
+
+All three take thumbnails `images` (N, H, W, 3) float32 linear camera RGB (saturated pixels zeroed,
+each image scaled to a maximum of 1; the project's are 64 x 64, see `thumbnails`) and their
+illuminants (N, 3) of any scale, and return a predictor `predict(images) -> (M, 3)` of unit-norm
+camera-RGB estimates.
+
+- `cnn`: the paper's estimator. Graphics2RAW (Seo et al. ICCV 2023, supplement S1.2) uses the
+  network of H. Gong, "Convolutional Mean: A Simple Convolutional Neural Network for Illuminant
+  Estimation", BMVC 2019, as re-implemented in the paper's released code (SamsungLabs/graphics2raw,
+  model_archs/cnn.py): conv 3x3 (3 -> 7) + 2x2 max-pool + ReLU, conv 3x3 (7 -> 14) + 2x2 max-pool +
+  ReLU, conv 1x1 (14 -> 3) + ReLU, global mean over locations: 1,137 parameters. The architecture
+  is theirs, written here in JAX; the training is scaled to our budget (see `cnn_config`): the
+  thumbnails 2x2-binned to 32 x 32, random 16 x 16 patches with flips (the paper: 64 x 64
+  patches of images downsampled 4x, about a twentieth of the frame, like ours), Adam (optax),
+  angular loss, the best of several checkpoints on a validation split held out of the training set.
+- `moments`: corrected moments (G. Finlayson, "Corrected-moment illuminant estimation", ICCV 2013):
+  grey-world, max-RGB, shades of grey p = 2, 4, 8 (Finlayson & Trezzi 2004) and grey-edge (van de
+  Weijer et al. 2007) estimates, each unit-normalised, mapped to the light by least squares.
+- `histogram`: ridge regression from a 2-D log-chroma histogram (the representation of J. Barron,
+  "Convolutional Color Constancy", ICCV 2015, Sec. 3, with a linear map in place of his learned
+  filter) to the illuminant's log-chroma.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+from typing import Callable, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+ESTIMATORS = ("cnn", "moments", "histogram")
+
+Predictor = Callable[[np.ndarray], np.ndarray]
+
+_DARK = 1e-4          # a pixel with any channel at or below this (of the image's max) carries no colour
+
+
+# ---------------------------------------------------------------- input checks
+
+def _check_images(images, who: str) -> np.ndarray:
+    array = np.asarray(images, dtype=np.float32)
+    if array.ndim != 4 or array.shape[-1] != 3:
+        raise ValueError(f"{who}: images must be (N, H, W, 3) camera RGB, got shape {np.shape(images)}")
+    if array.shape[0] == 0:
+        raise ValueError(f"{who}: no images")
+    if not np.isfinite(array).all():
+        raise ValueError(f"{who}: image {int(np.argmax(~np.isfinite(array).reshape(len(array), -1).all(1)))} "
+                         "has non-finite pixels")
+    if (array < 0).any():
+        raise ValueError(f"{who}: image {int(np.argmax((array < 0).reshape(len(array), -1).any(1)))} has negative "
+                         "pixels; expected linear camera RGB with black subtracted and clipped at 0")
+    return array
+
+
+def _check_lights(illuminants, count: int, who: str) -> np.ndarray:
+    lights = np.asarray(illuminants, dtype=np.float64)
+    if lights.shape != (count, 3):
+        raise ValueError(f"{who}: illuminants must be ({count}, 3), one per image, got shape {lights.shape}")
+    if not np.isfinite(lights).all() or (lights <= 0).any():
+        row = int(np.argmax(~(np.isfinite(lights) & (lights > 0)).all(1)))
+        raise ValueError(f"{who}: illuminant {row} is {lights[row]}; every channel must be finite and positive")
+    return lights / np.linalg.norm(lights, axis=1, keepdims=True)
+
+
+def _unit_rows(rgb: np.ndarray) -> np.ndarray:
+    """Estimates -> unit-norm rows, each channel floored at 1e-6 of the row's size (a light is positive)."""
+    rgb = np.asarray(rgb, np.float64)
+    scale = np.maximum(np.abs(rgb).max(axis=1, keepdims=True), 1e-12)
+    rgb = np.maximum(rgb, 1e-6 * scale)
+    return (rgb / np.linalg.norm(rgb, axis=1, keepdims=True)).astype(np.float32)
+
+
+# ---------------------------------------------------------------- corrected moments
+
+def moment_features(images) -> np.ndarray:
+    """(N, H, W, 3) -> (N, 18): six unit-norm RGB estimates per image (Finlayson 2013's inputs).
+
+    Grey-world, max-RGB and shades of grey (Minkowski p = 2, 4, 8) over the pixels with every
+    channel above `_DARK` (zeroed saturated pixels excluded); grey-edge: the mean per-channel
+    gradient magnitude (forward differences) over 2 x 2 neighbourhoods of valid pixels. An image
+    with no valid pixel (or no valid edge) gives the achromatic direction for that estimate.
+    """
+    x = np.ascontiguousarray(np.asarray(images, np.float32).transpose(0, 3, 1, 2))   # channel planes: fast sums
+    n = len(x)
+    valid = (x > _DARK).all(1, keepdims=True)                            # (N, 1, H, W)
+    planes = np.where(valid, x, 0.0).reshape(n, 3, -1)                   # invalid pixels weigh nothing
+    count = np.maximum(valid.reshape(n, -1).sum(1), 1)[:, None].astype(np.float32)
+    squared = planes * planes
+    fourth = squared * squared
+    estimates = [planes.sum(-1) / count, planes.max(-1), np.sqrt(squared.sum(-1) / count),
+                 (fourth.sum(-1) / count) ** 0.25, ((fourth * fourth).sum(-1) / count) ** 0.125]
+    dx = x[:, :, :-1, 1:] - x[:, :, :-1, :-1]
+    dy = x[:, :, 1:, :-1] - x[:, :, :-1, :-1]
+    edge_ok = valid[:, :, :-1, :-1] & valid[:, :, :-1, 1:] & valid[:, :, 1:, :-1]
+    magnitude = np.where(edge_ok, np.sqrt(dx * dx + dy * dy), 0.0).reshape(n, 3, -1)
+    estimates.append(magnitude.sum(-1) / np.maximum(edge_ok.reshape(n, -1).sum(1), 1)[:, None])
+    features = []
+    for e in estimates:
+        norm = np.linalg.norm(e, axis=1, keepdims=True)
+        features.append(np.where(norm > 1e-12, e / np.maximum(norm, 1e-12), 1 / np.sqrt(3)))
+    return np.concatenate(features, axis=1).astype(np.float64)
+
+
+def train_moments(images, illuminants, *, seed: int = 0, ridge: float = 1e-6) -> Predictor:
+    """Corrected moments (Finlayson, ICCV 2013, Sec. 3): light = [features, 1] @ C, C by least squares.
+
+    `ridge` (times the number of images) keeps C defined when features are collinear; `seed` is
+    unused (closed form), accepted for a common signature.
+    """
+    x = _check_images(images, "moments")
+    target = _check_lights(illuminants, len(x), "moments")
+    design = np.c_[moment_features(x), np.ones(len(x))]
+    gram = design.T @ design + ridge * len(x) * np.eye(design.shape[1])
+    correction = np.linalg.solve(gram, design.T @ target)
+
+    def predict(test_images) -> np.ndarray:
+        t = _check_images(test_images, "moments predictor")
+        return _unit_rows(np.c_[moment_features(t), np.ones(len(t))] @ correction)
+
+    return predict
+
+
+# ---------------------------------------------------------------- log-chroma histogram
+
+@dataclasses.dataclass(frozen=True)
+class HistogramGrid:
+    """The log-chroma grid u = log(g / r), v = log(g / b): `bins` per axis over centre +- half_width."""
+    centre: tuple
+    half_width: float = 1.6
+    bins: int = 32
+
+
+def log_chroma(rgb: np.ndarray) -> np.ndarray:
+    """(..., 3) positive RGB -> (..., 2) (log(g / r), log(g / b)) (Barron 2015, Eq. 2)."""
+    rgb = np.asarray(rgb, np.float64)
+    return np.stack([np.log(rgb[..., 1] / rgb[..., 0]), np.log(rgb[..., 1] / rgb[..., 2])], -1)
+
+
+def histogram_features(images, grid: HistogramGrid) -> np.ndarray:
+    """(N, H, W, 3) -> (N, bins * bins): each image's log-chroma histogram, pixels weighted by their
+    brightness (r + g + b), normalised to sum 1, square-rooted (so a few large uniform regions do not
+    dominate). Pixels with a channel at or below `_DARK` or off the grid are left out."""
+    x = np.ascontiguousarray(np.asarray(images, np.float32).transpose(0, 3, 1, 2)).reshape(len(images), 3, -1)
+    n = len(x)
+    valid = (x > _DARK).all(1)                                           # (N, H * W)
+    logs = np.log(np.where(valid[:, None], x, 1.0))
+    low = np.asarray(grid.centre, np.float32) - grid.half_width
+    cell = 2 * grid.half_width / grid.bins
+    u = np.floor((logs[:, 1] - logs[:, 0] - low[0]) / cell).astype(np.int32)
+    v = np.floor((logs[:, 1] - logs[:, 2] - low[1]) / cell).astype(np.int32)
+    inside = valid & (u >= 0) & (u < grid.bins) & (v >= 0) & (v < grid.bins)
+    flat = np.where(inside, u * grid.bins + v, 0) + (np.arange(n) * grid.bins ** 2)[:, None]
+    weight = np.where(inside, x.sum(1), 0.0)
+    counts = np.bincount(flat.ravel(), weights=weight.ravel(), minlength=n * grid.bins ** 2).reshape(n, -1)
+    counts /= np.maximum(counts.sum(1, keepdims=True), 1e-12)
+    return np.sqrt(counts)
+
+
+def train_histogram(images, illuminants, *, seed: int = 0, ridge: float = 1e-2,
+                    half_width: float = 1.6, bins: int = 32) -> Predictor:
+    """Ridge regression histogram -> illuminant log-chroma (linear, in the spirit of Barron 2015).
+
+    The grid is centred on the training lights' mean log-chroma (pixels are surface chroma plus
+    light chroma, Barron Eq. 3, so the lights fix where the mass lies); `ridge` times the number of
+    images is the Tikhonov weight on centred features. `seed` is unused (closed form).
+    """
+    x = _check_images(images, "histogram")
+    lights = _check_lights(illuminants, len(x), "histogram")
+    target = log_chroma(lights)
+    grid = HistogramGrid(centre=tuple(float(c) for c in target.mean(0)), half_width=half_width, bins=bins)
+    features = histogram_features(x, grid)
+    mean_feature, mean_target = features.mean(0), target.mean(0)
+    centred = features - mean_feature
+    gram = centred.T @ centred + ridge * len(x) * np.eye(centred.shape[1])
+    weights = np.linalg.solve(gram, centred.T @ (target - mean_target))
+
+    def predict(test_images) -> np.ndarray:
+        t = _check_images(test_images, "histogram predictor")
+        uv = (histogram_features(t, grid) - mean_feature) @ weights + mean_target
+        return _unit_rows(np.stack([np.exp(-uv[:, 0]), np.ones(len(uv)), np.exp(-uv[:, 1])], 1))
+
+    return predict
+
+
+# ---------------------------------------------------------------- the CNN (Gong 2019, as in Graphics2RAW)
+
+@dataclasses.dataclass(frozen=True)
+class CnnConfig:
+    """Training of the CNN, chosen for about a second of CPU per model (see
+    benchmarks/downstream_estimators_speed.py for the measurements that chose it)."""
+    binning: int = 2            # thumbnails averaged over binning x binning pixels first
+    patch: int = 16             # side of the random training patches (after binning)
+    batch: int = 32
+    checkpoints: int = 8        # validation evaluations; the best one is kept
+    steps_per_checkpoint: int = 40
+    learning_rate: float = 1e-2
+    validation_fraction: float = 1 / 6     # the paper's 25 of 150 training images
+    max_validation: int = 64    # images the validation error is measured on (a random subset)
+    filters: int = 7            # Gong's width: 7 then 14 channels
+
+
+def cnn_init(seed: int, filters: int = 7) -> dict:
+    """Parameters of Gong's network, initialised as PyTorch's default (uniform +- 1/sqrt(fan_in),
+    numpy's generator for `seed`), except the last layer's biases, set to 1 so that no output
+    channel starts dead behind its ReLU (a channel negative at every location never receives a
+    gradient again; with the default biases that happened on real data)."""
+    rng = np.random.default_rng([seed, 1137])
+    shapes = {"conv1": (3, 3, 3, filters), "conv2": (3, 3, filters, 2 * filters), "conv3": (1, 1, 2 * filters, 3)}
+    params = {}
+    for name, shape in shapes.items():
+        bound = 1.0 / np.sqrt(np.prod(shape[:3]))
+        params[name] = {"w": rng.uniform(-bound, bound, shape).astype(np.float32),
+                        "b": rng.uniform(-bound, bound, shape[3]).astype(np.float32)}
+    params["conv3"]["b"] = np.ones(3, np.float32)
+    return params
+
+
+def count_parameters(params) -> int:
+    return int(sum(np.size(leaf) for leaf in jax.tree_util.tree_leaves(params)))
+
+
+def _conv(x, layer):
+    """'Same' convolution (HWIO kernel, odd size) as one matrix product over shifted copies: on
+    CPU, inside the training loop, about 3x faster than lax.conv for these few channels
+    (benchmarks/downstream_estimators_speed.py)."""
+    kernel = layer["w"]
+    size, inputs, outputs = kernel.shape[0], kernel.shape[2], kernel.shape[3]
+    if size == 1:
+        return x @ kernel[0, 0] + layer["b"]
+    _, h, w, _ = x.shape
+    r = size // 2
+    padded = jnp.pad(x, ((0, 0), (r, r), (r, r), (0, 0)))
+    columns = jnp.concatenate([padded[:, i:i + h, j:j + w] for i in range(size) for j in range(size)], -1)
+    return columns @ kernel.reshape(size * size * inputs, outputs) + layer["b"]
+
+
+def _max_pool2(x):
+    b, h, w, c = x.shape
+    return x[:, : h // 2 * 2, : w // 2 * 2].reshape(b, h // 2, 2, w // 2, 2, c).max((2, 4))
+
+
+def cnn_local_estimates(params, x):
+    """(B, H, W, 3) -> (B, H/4, W/4, 3): the network's per-location estimates before the mean."""
+    y = jax.nn.relu(_max_pool2(_conv(x, params["conv1"])))
+    y = jax.nn.relu(_max_pool2(_conv(y, params["conv2"])))
+    return jax.nn.relu(_conv(y, params["conv3"]))
+
+
+def cnn_apply(params, x):
+    """(B, H, W, 3) -> (B, 3): Gong's convolutional mean, the average of the local estimates."""
+    return cnn_local_estimates(params, x).mean((1, 2))
+
+
+def _angular_loss_degrees(estimate, truth):
+    """Mean angle (degrees) between rows; differentiable at zero angle (atan2 form, eps-guarded)."""
+    e = estimate / jnp.sqrt(jnp.sum(estimate ** 2, -1, keepdims=True) + 1e-12)
+    t = truth / jnp.sqrt(jnp.sum(truth ** 2, -1, keepdims=True) + 1e-12)
+    cross = jnp.cross(e, t)
+    sine = jnp.sqrt(jnp.sum(cross ** 2, -1) + 1e-12)
+    return jnp.degrees(jnp.arctan2(sine, jnp.sum(e * t, -1)))
+
+
+def _bin(images: np.ndarray, factor: int) -> np.ndarray:
+    """Average factor x factor blocks and rescale each image to a maximum of 1."""
+    if factor == 1:
+        return images
+    n, h, w, _ = images.shape
+    binned = images[:, : h // factor * factor, : w // factor * factor].reshape(
+        n, h // factor, factor, w // factor, factor, 3).mean((2, 4))
+    peak = binned.reshape(n, -1).max(1)
+    return binned / np.where(peak > 0, peak, 1.0)[:, None, None, None]
+
+
+def _bucket(count: int, smallest: int) -> int:
+    """Array capacity for `count` rows: the next power of two (at least `smallest`), so that a few
+    compiled programs serve every set size."""
+    return max(smallest, 1 << int(np.ceil(np.log2(max(count, 1)))))
+
+
+def _pad(array: np.ndarray, rows: int) -> np.ndarray:
+    return np.concatenate([array, np.zeros((rows - len(array),) + array.shape[1:], array.dtype)])
+
+
+def _content_groups(images: np.ndarray) -> np.ndarray:
+    """Group id per image; identical images (a set repeated to size) share one, so that a
+    validation split never holds copies of training images."""
+    digests = [hashlib.blake2b(image.tobytes(), digest_size=16).digest() for image in images]
+    _, groups = np.unique(np.array(digests, dtype=object).astype(bytes), return_inverse=True)
+    return groups.reshape(-1)
+
+
+def _split(images: np.ndarray, fraction: float, limit: int, rng: np.random.Generator):
+    """Training / validation indices: a random `fraction` of the distinct images (at most `limit`
+    of them, at least one) held out, copies kept together."""
+    groups = _content_groups(images)
+    distinct = np.unique(groups)
+    if len(distinct) < 2:
+        raise ValueError("cnn: the training set needs at least two distinct images (one is held out "
+                         "for validation)")
+    held = rng.permutation(distinct)[: int(np.clip(round(fraction * len(distinct)), 1, min(limit, len(distinct) - 1)))]
+    is_val = np.isin(groups, held)
+    val = np.flatnonzero(is_val)
+    if len(val) > limit:
+        val = np.sort(rng.choice(val, limit, replace=False))
+    return np.flatnonzero(~is_val), val
+
+
+def _train_program(config: CnnConfig):
+    """The whole training as one function of arrays (jit once per set capacity and config)."""
+    optimiser = optax.adam(config.learning_rate)
+    patch = config.patch
+
+    def loss_fn(params, crops, lights):
+        return _angular_loss_degrees(cnn_apply(params, crops), lights).mean()
+
+    def val_error(params, val_x, val_y, val_w):
+        errors = _angular_loss_degrees(cnn_apply(params, val_x), val_y)
+        return jnp.sum(jnp.where(val_w > 0, errors, 0.0)) / jnp.sum(val_w)
+
+    def train(params, data_key, train_x, train_y, n_train, val_x, val_y, val_w):
+        height, width = train_x.shape[1:3]
+
+        def step(carry, key):
+            params, state = carry
+            k_index, k_y, k_x, k_flip = jax.random.split(key, 4)
+            index = jax.random.randint(k_index, (config.batch,), 0, n_train)
+            top = jax.random.randint(k_y, (config.batch,), 0, height - patch + 1)
+            left = jax.random.randint(k_x, (config.batch,), 0, width - patch + 1)
+            crops = jax.vmap(lambda i, t, l: jax.lax.dynamic_slice(train_x[i], (t, l, 0), (patch, patch, 3)))(
+                index, top, left)
+            flips = jax.random.bernoulli(k_flip, 0.5, (2, config.batch))[..., None, None, None]
+            crops = jnp.where(flips[0], crops[:, :, ::-1], crops)
+            crops = jnp.where(flips[1], crops[:, ::-1], crops)
+            loss, grads = jax.value_and_grad(loss_fn)(params, crops, train_y[index])
+            updates, state = optimiser.update(grads, state, params)
+            return (optax.apply_updates(params, updates), state), loss
+
+        def checkpoint(carry, key):
+            params, state, best, best_error = carry
+            (params, state), losses = jax.lax.scan(step, (params, state),
+                                                   jax.random.split(key, config.steps_per_checkpoint))
+            error = val_error(params, val_x, val_y, val_w)
+            better = error < best_error
+            best = jax.tree_util.tree_map(lambda new, old: jnp.where(better, new, old), params, best)
+            return (params, state, best, jnp.minimum(error, best_error)), (error, losses.mean())
+
+        carry = (params, optimiser.init(params), params, jnp.float32(jnp.inf))
+        (_, _, best, best_error), curve = jax.lax.scan(checkpoint, carry,
+                                                       jax.random.split(data_key, config.checkpoints))
+        return best, best_error, curve
+
+    return train
+
+
+@functools.lru_cache(maxsize=None)
+def _compiled_train(config: CnnConfig, many: bool):
+    program = _train_program(config)
+    if many:
+        program = jax.vmap(program)
+    return jax.jit(program)
+
+
+@jax.jit
+def _apply_jit(params, x):
+    return cnn_apply(params, x)
+
+
+@dataclasses.dataclass
+class CnnPredictor:
+    """A trained CNN: `predict(images)` (also callable) gives unit-norm estimates; `params`, the
+    validation error of the kept checkpoint and the curve (validation error, mean training loss
+    per checkpoint) are kept for reports."""
+    params: dict
+    config: CnnConfig
+    validation_error: float
+    curve: tuple
+
+    def __call__(self, images) -> np.ndarray:
+        x = _bin(_check_images(images, "cnn predictor"), self.config.binning)
+        out = [np.asarray(_apply_jit(self.params, jnp.asarray(x[s:s + 512]))) for s in range(0, len(x), 512)]
+        return _unit_rows(np.concatenate(out))
+
+    predict = __call__
+
+
+def _prepare(images, illuminants, seed: int, config: CnnConfig):
+    x = _check_images(images, "cnn")
+    lights = _check_lights(illuminants, len(x), "cnn").astype(np.float32)
+    binned = _bin(x, config.binning)
+    if min(binned.shape[1:3]) < config.patch:
+        raise ValueError(f"cnn: images of {x.shape[1]} x {x.shape[2]} binned {config.binning}x are smaller "
+                         f"than the {config.patch}-pixel training patch")
+    rng = np.random.default_rng(seed)
+    train, val = _split(x, config.validation_fraction, config.max_validation, rng)
+    capacity = _bucket(len(train), 256)
+    val_w = np.zeros(config.max_validation, np.float32)
+    val_w[: len(val)] = 1.0
+    arrays = (_pad(binned[train], capacity), _pad(lights[train], capacity), np.int32(len(train)),
+              _pad(binned[val], config.max_validation), _pad(lights[val], config.max_validation), val_w)
+    return (cnn_init(seed, config.filters), np.asarray(jax.random.PRNGKey(seed))) + arrays
+
+
+def train_cnn(images, illuminants, *, seed: int = 0, config: CnnConfig = CnnConfig()) -> CnnPredictor:
+    """Train Gong's convolutional-mean CNN (see the module docstring); deterministic for a seed."""
+    best, error, curve = _compiled_train(config, False)(*_prepare(images, illuminants, seed, config))
+    return CnnPredictor(params=jax.tree_util.tree_map(np.asarray, best), config=config,
+                        validation_error=float(error), curve=tuple(np.asarray(c) for c in curve))
+
+
+def train_many_cnn(sets: Sequence[tuple], seeds: Sequence[int], *,
+                   config: CnnConfig = CnnConfig()) -> list:
+    """Several CNN trainings as one vmapped program (sets of one capacity are batched together).
+
+    **Arguments:** `sets`: (images, illuminants) pairs; `seeds`: one per set. **Returns:** one
+    `CnnPredictor` per set, equal to `train_cnn(images, illuminants, seed=seed)` up to float
+    reassociation.
+    """
+    if len(sets) != len(seeds):
+        raise ValueError(f"{len(sets)} training sets but {len(seeds)} seeds")
+    prepared = [_prepare(images, lights, seed, config) for (images, lights), seed in zip(sets, seeds)]
+    out = [None] * len(sets)
+    for capacity in sorted({p[2].shape[0] for p in prepared}):
+        members = [i for i, p in enumerate(prepared) if p[2].shape[0] == capacity]
+        stacked = jax.tree_util.tree_map(lambda *leaves: np.stack(leaves), *[prepared[i] for i in members])
+        best, error, curve = _compiled_train(config, True)(*stacked)
+        for j, i in enumerate(members):
+            out[i] = CnnPredictor(params=jax.tree_util.tree_map(lambda a: np.asarray(a[j]), best), config=config,
+                                  validation_error=float(error[j]),
+                                  curve=tuple(np.asarray(c[j]) for c in curve))
+    return out
+
+
+# ---------------------------------------------------------------- the common entry
+
+_TRAINERS = {"cnn": train_cnn, "moments": train_moments, "histogram": train_histogram}
+
+
+def train_estimator(kind: str, images, illuminants, *, seed: int = 0) -> Predictor:
+    """Train estimator `kind` (one of `ESTIMATORS`) on thumbnails and their lights; deterministic
+    for a seed. **Returns:** `predict(images) -> (M, 3)` unit-norm camera-RGB estimates."""
+    if kind not in _TRAINERS:
+        raise ValueError(f"unknown estimator {kind!r}; expected one of {', '.join(ESTIMATORS)}")
+    return _TRAINERS[kind](images, illuminants, seed=seed)
+
+
+def train_many(kind: str, sets: Sequence[tuple], seeds: Sequence[int]) -> list:
+    """`train_estimator` for several (images, illuminants) sets; the CNN's are trained together
+    in one vmapped program (see benchmarks/downstream_estimators_speed.py for when that pays)."""
+    if kind == "cnn":
+        return train_many_cnn(sets, seeds)
+    if len(sets) != len(seeds):
+        raise ValueError(f"{len(sets)} training sets but {len(seeds)} seeds")
+    return [train_estimator(kind, images, lights, seed=seed) for (images, lights), seed in zip(sets, seeds)]
