@@ -145,7 +145,8 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
     if noise:
         mosaic = _sensor.add_noise(conditions["noise_key"], mosaic, conditions["noise_shot"], conditions["noise_read"],
                                    level_knots=profile.noise.level_knots, level_variance=conditions.get("noise_level"),
-                                   correlation_kernel=profile.noise.correlation_kernel, valid_shape=valid_shape)
+                                   correlation_kernel=profile.noise.correlation_kernel, valid_shape=valid_shape,
+                                   correlation_levels=(profile.noise.correlation_knots, profile.noise.correlation_weight))
     effect_parameters = profile.effects if effects else _sensor.no_effects()
     if effects:
         mosaic = _sensor.apply_readout_effects(conditions["readout_key"], mosaic, profile.effects)

@@ -209,3 +209,54 @@ def test_gopro_frame_extension_has_a_heldout_gain(shared_data):
     gain_after = np.mean(np.abs(np.log(after[ok] / test_est.variance[ok])))
     assert gain_after < gain_before / 3, (gain_before, gain_after)
     assert not fit_corr.white.any()
+
+
+def _with_levels(profile, knots, weight):
+    """The profile's noise with its kernel's share by level (`sensor.noise.shape`)."""
+    noise = _profile.replace(profile.noise, correlation_knots=jnp.asarray(knots, jnp.float32),
+                             correlation_weight=jnp.asarray(np.broadcast_to(weight, (4, len(knots))), jnp.float32))
+    return _profile.replace(profile, noise=noise)
+
+
+@jax.jit
+def _shaped_stage(key, mosaic, noise, iso):
+    shot, read = sensor.noise_parameters(iso, noise)
+    return sensor.add_noise(key, mosaic, shot, read, level_knots=noise.level_knots,
+                            level_variance=sensor.noise_level_at(iso, noise), correlation_kernel=noise.correlation_kernel,
+                            correlation_levels=(noise.correlation_knots, noise.correlation_weight))
+
+
+def test_kernel_share_by_level_blends_white_and_kernel_noise():
+    """Share 0 gives the white draws, share 1 the kernel's, bit for bit; in between the variance
+    stays what the model says and the neighbour correlation is the blend's."""
+    correlated = _with_shape(synthetic.demo_profile(), None, KERNEL)
+    key, mosaic, iso = jax.random.PRNGKey(3), _linear_mosaic(0, 128, 192, 1.0), jnp.asarray(400.0)
+    noise_of = lambda p: np.asarray(_shaped_stage(key, mosaic, p.noise, iso), np.float64) - np.asarray(mosaic)
+    white, kernel = noise_of(synthetic.demo_profile()), noise_of(correlated)
+    knots = np.array([0.0, 1.0])
+    np.testing.assert_array_equal(noise_of(_with_levels(correlated, knots, [0.0, 0.0])), white)
+    np.testing.assert_array_equal(noise_of(_with_levels(correlated, knots, [1.0, 1.0])), kernel)
+    flat = jnp.full((256, 384), 0.3, jnp.float32)
+    half = np.asarray(_shaped_stage(key, flat, _with_levels(correlated, knots, [0.5, 0.5]).noise, iso), np.float64) - 0.3
+    expected_variance = float(nx.predicted_variance(correlated.noise, 400.0, np.full((4, 1), 0.3))[0, 0])
+    assert abs(np.var(half) / expected_variance - 1) < 0.03
+    plane = half[0::2, 0::2]
+    rho = np.mean(plane[:, 1:] * plane[:, :-1]) / np.var(plane)
+    blend = nx.blended_kernel(np.asarray(correlated.noise.correlation_kernel[0]) / np.sqrt(np.sum(KERNEL**2)), 0.5)
+    assert abs(rho - nx.kernel_autocorrelation(blend)[1]) < 0.02, rho
+
+
+def test_kernel_share_by_level_round_trips_through_json_and_is_validated():
+    shaped = _with_levels(_with_shape(synthetic.demo_profile(), None, KERNEL), [0.0, 0.15, 0.2, 1.0], [0, 0, 1, 1])
+    document = _profile.profile_to_dict(shaped)
+    loaded = _profile.profile_from_dict(document)
+    np.testing.assert_allclose(np.asarray(loaded.noise.correlation_weight), np.asarray(shaped.noise.correlation_weight))
+    np.testing.assert_allclose(np.asarray(loaded.noise.correlation_knots), np.asarray(shaped.noise.correlation_knots))
+    levels = document["noise"]["correlation_levels"]
+    for broken, field in (({**levels, "weight": [[0, 0, 1, 1.5]] * 4}, "noise.correlation_levels.weight"),
+                          ({**levels, "knots": [0.0, 0.2, 0.15, 1.0]}, "noise.correlation_levels.knots")):
+        with pytest.raises(_profile.ProfileError, match=field):
+            _profile.profile_from_dict({**document, "noise": {**document["noise"], "correlation_levels": broken}})
+    without_kernel = {k: v for k, v in document["noise"].items() if k != "correlation_kernel"}
+    with pytest.raises(_profile.ProfileError, match="noise.correlation_levels"):
+        _profile.profile_from_dict({**document, "noise": without_kernel})

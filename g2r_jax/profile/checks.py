@@ -192,6 +192,10 @@ def check_document(document, source: str = "<profile>") -> None:
             c.numbers(level.get("knots"), "noise.level_function.knots", low=-1, high=2)
             c.numbers(level.get("variance"), "noise.level_function.variance", low=0, high=1)
         c.numbers(noise.get("correlation_kernel"), "noise.correlation_kernel", low=-100, high=100, optional=True)
+        levels = c.obj(noise.get("correlation_levels"), "noise.correlation_levels")
+        if levels:
+            c.numbers(levels.get("knots"), "noise.correlation_levels.knots", low=-1, high=2)
+            c.numbers(levels.get("weight"), "noise.correlation_levels.weight", low=0, high=1)
         if not isinstance(noise.get("read_excludes_quantisation", False), bool):
             c.fail("noise.read_excludes_quantisation", "expected true or false")
 

@@ -105,6 +105,8 @@ def _noise_to_dict(noise: _sensor.NoiseModel) -> dict:
         document["level_function"] = {"knots": _list(noise.level_knots), "variance": _list(noise.level_variance)}
     if noise.correlation_kernel is not None:
         document["correlation_kernel"] = _list(noise.correlation_kernel)
+    if noise.correlation_weight is not None:
+        document["correlation_levels"] = {"knots": _list(noise.correlation_knots), "weight": _list(noise.correlation_weight)}
     if noise.read_excludes_quantisation:
         document["read_excludes_quantisation"] = True
     return document
@@ -129,6 +131,18 @@ def _noise_shape_from_dict(r, noise_doc, n_iso: int) -> dict:
         if np.any(np.sum(kernel**2, axis=(1, 2)) <= 0):
             r.fail("noise.correlation_kernel", "a kernel of all zeros has no noise to correlate")
         shape["correlation_kernel"] = kernel
+    levels = r.get(noise_doc, "correlation_levels", "noise", optional=True)
+    if levels is not None:
+        if kernel is None:
+            r.fail("noise.correlation_levels", "needs a noise.correlation_kernel (the kernel's share by level)")
+        knots = r.array(r.get(levels, "knots", "noise.correlation_levels"), "noise.correlation_levels.knots", (None,))
+        if len(knots) < 2 or np.any(np.diff(knots) <= 0):
+            r.fail("noise.correlation_levels.knots", "must be at least two strictly ascending signal values")
+        weight = r.array(r.get(levels, "weight", "noise.correlation_levels"), "noise.correlation_levels.weight",
+                         (4, len(knots)))
+        if np.any((weight < 0) | (weight > 1)):
+            r.fail("noise.correlation_levels.weight", "must lie in [0, 1] (the kernel's share)")
+        shape.update(correlation_knots=knots, correlation_weight=weight)
     return shape
 
 
@@ -258,7 +272,7 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
 
     ill = r.get(document, "illuminants", "illuminants")
     kind = r.get(ill, "kind", "illuminants")
-    if kind not in ("gaussian", "mixture", "locus", "prior"):
+    if kind not in ("gaussian", "mixture", "locus", "prior", "kernel"):
         r.fail("illuminants.kind", f"unknown kind {kind!r}")
     weights = r.array(r.get(ill, "weights", "illuminants"), "illuminants.weights", (None,), positive=True)
     k = len(weights)

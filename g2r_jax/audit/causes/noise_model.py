@@ -383,6 +383,8 @@ class NoiseModel(Cause):
             fields = {k: jnp.asarray(params[k], dtype) for k in ("iso", "shot", "read", "level_knots", "level_variance")}
             noise = type(profile.noise)(iso_range=profile.noise.iso_range,
                                         correlation_kernel=profile.noise.correlation_kernel,
+                                        correlation_knots=profile.noise.correlation_knots,
+                                        correlation_weight=profile.noise.correlation_weight,
                                         read_excludes_quantisation=profile.noise.read_excludes_quantisation, **fields)
             return _profile.replace(profile, noise=noise)
         shot = profile.noise.shot * as_profile_dtype(profile, params["shot_scale"])[None]

@@ -3,6 +3,10 @@
 - `fit_noise_extension(estimate, profile, correlation=...)`: the profile with a noise level
   function per CFA position (piecewise linear on `DEFAULT_KNOTS`, optionally monotone) and a 3 x 3
   correlation kernel per position (`g2r_jax.noise_shape`, `sensor.NoiseModel`).
+- `fit_correlation_by_level(estimate)`: a 3 x 3 kernel per position and its share by signal
+  level (`NoiseModel.correlation_knots`, `correlation_weight`), for noise that is smoothed only
+  at some levels (in-camera denoising above a signal level); `autocorrelation_at_levels(noise,
+  signal)`: the autocorrelation a NoiseModel simulates there.
 - `fit_shot_read(estimate)`: the DNG NoiseProfile model, variance = shot * x + read, per
   position (for files without a usable NoiseProfile tag).
 - `predicted_variance(noise, iso, signal)`: what a NoiseModel (with or without the extension)
@@ -104,22 +108,99 @@ def fit_correlation_kernel(correlation: _estimation.NoiseCorrelationEstimate) ->
     kernels = np.zeros((4, 3, 3))
     kernels[:, 1, 1] = 1.0
     for p in range(4):
-        if not np.all(np.isfinite(correlation.rho[p])):
-            continue
-        target = correlation.autocorrelation_window(p)
-        sd = _estimation._window(np.maximum(correlation.sd[p], 1e-3))
-
-        def residuals(flat):
-            k = flat.reshape(3, 3)
-            padded = np.pad(k, 2)
-            auto = np.array([[np.sum(k * padded[2 + dy:5 + dy, 2 + dx:5 + dx]) for dx in range(-2, 3)]
-                             for dy in range(-2, 3)])
-            return np.delete(((auto / auto[2, 2] - target) / sd).reshape(-1), 12)   # lag 0 is 1 by construction
-
-        start = np.array([[0.05, 0.1, 0.05], [0.1, 1.0, 0.1], [0.05, 0.1, 0.05]]).reshape(-1)
-        k = least_squares(residuals, start, method="lm", xtol=1e-12, ftol=1e-12).x.reshape(3, 3)
-        kernels[p] = k / np.sqrt(np.sum(k * k))
+        if np.all(np.isfinite(correlation.rho[p])):
+            kernels[p] = kernel_for_autocorrelation(correlation.rho[p], np.maximum(correlation.sd[p], 1e-3))
     return kernels
+
+
+def kernel_for_autocorrelation(rho, sd=None) -> np.ndarray:
+    """(3, 3) kernel k (unit sum of squares) whose autocorrelation matches `rho` (13,) at
+    `noise_estimation.LAGS` (weights 1 / `sd`; Levenberg-Marquardt from a near-identity kernel)."""
+    target = _estimation._window(rho)
+    sd = _estimation._window(np.ones(len(rho)) if sd is None else sd)
+
+    def residuals(flat):
+        k = flat.reshape(3, 3)
+        padded = np.pad(k, 2)
+        auto = np.array([[np.sum(k * padded[2 + dy:5 + dy, 2 + dx:5 + dx]) for dx in range(-2, 3)]
+                         for dy in range(-2, 3)])
+        return np.delete(((auto / auto[2, 2] - target) / sd).reshape(-1), 12)   # lag 0 is 1 by construction
+
+    start = np.array([[0.05, 0.1, 0.05], [0.1, 1.0, 0.1], [0.05, 0.1, 0.05]]).reshape(-1)
+    k = least_squares(residuals, start, method="lm", xtol=1e-12, ftol=1e-12).x.reshape(3, 3)
+    return k / np.sqrt(np.sum(k * k))
+
+
+def blended_kernel(kernel, weight) -> np.ndarray:
+    """(1 - w) delta + w k for a (3, 3) kernel k of unit sum of squares (`sensor.noise.shape`)."""
+    out = np.asarray(weight, np.float64) * np.asarray(kernel, np.float64)
+    out[1, 1] += 1.0 - weight
+    return out
+
+
+def autocorrelation_at_levels(noise, signal) -> np.ndarray:
+    """(4, B, 13) autocorrelation of the noise a NoiseModel simulates at `signal` (4, B), at
+    `noise_estimation.LAGS` (0 beyond lag 0 for white noise): its kernel, blended with delta by
+    its weight at each level where it has one (`sensor.noise.shape`)."""
+    signal = np.asarray(signal, np.float64)
+    out = np.zeros(signal.shape + (len(_estimation.LAGS),))
+    out[..., 0] = 1.0
+    if noise.correlation_kernel is None:
+        return out
+    kernels = np.asarray(noise.correlation_kernel, np.float64)
+    kernels = kernels / np.sqrt(np.sum(kernels**2, axis=(1, 2), keepdims=True))
+    for p in range(signal.shape[0]):
+        if noise.correlation_weight is None:
+            weights = np.ones(signal.shape[1])
+        else:
+            weights = np.interp(signal[p], np.asarray(noise.correlation_knots, np.float64),
+                                np.asarray(noise.correlation_weight, np.float64)[p])
+        for b, w in enumerate(weights):
+            out[p, b] = kernel_autocorrelation(blended_kernel(kernels[p], w)) if np.isfinite(w) else np.nan
+    return out
+
+
+WEIGHT_GRID = np.linspace(0.0, 1.0, 101)
+CORRELATED = 0.05   # mean autocorrelation at the three nearest lags above which a bin counts as correlated
+STRONGEST = 0.85    # bins within this share of the strongest correlation give the kernel (not those half blended)
+
+
+def fit_correlation_by_level(estimate, *, knots=DEFAULT_KNOTS, min_blocks: int = 30):
+    """(kernels (4, 3, 3), knots (K,), weight (4, K)): the noise's correlation as a function of the
+    signal, from the lag statistics of each bin of a `NoiseLevelEstimate` (its `autocovariance`,
+    measured with the variance: rho(l) = C(l) / C(0) per bin).
+
+    Per position: the kernel (`kernel_for_autocorrelation`) from the block-weighted mean rho of
+    the bins whose correlation at the lags (0, 1), (1, 0), (1, 1) is at least `STRONGEST` of the
+    strongest bin's; then, per bin, the kernel's share w in [0, 1] whose blend (1 - w) delta + w k
+    (`blended_kernel`) matches that bin's rho at the 12 lags best (least squares on a grid of
+    0.01); w is piecewise linear between the bins' signals on `knots`, held beyond them. A camera
+    that smooths its noise only above a signal level (in-camera denoising, lossy raw codecs) reads
+    w = 0 below it and w near 1 above. Where no bin is correlated (strongest below
+    `CORRELATED`), the identity kernel and w = 0."""
+    knots = np.asarray(knots, np.float64)
+    lags = _estimation.LAGS
+    near = [lags.index((0, 1)), lags.index((1, 0)), lags.index((1, 1))]
+    kernels = np.zeros((4, 3, 3))
+    kernels[:, 1, 1] = 1.0
+    weight = np.zeros((4, len(knots)))
+    for p in range(4):
+        c = np.asarray(estimate.autocovariance[p], np.float64)
+        ok = (np.asarray(estimate.counts[p]) >= min_blocks) & np.isfinite(c[:, 0]) & (c[:, 0] > 0) \
+            & np.isfinite(estimate.signal[p])
+        if not ok.any():
+            continue
+        rho = c[ok] / c[ok, :1]
+        counts = np.asarray(estimate.counts[p], np.float64)[ok]
+        strength = rho[:, near].mean(axis=1)
+        if strength.max() < CORRELATED:
+            continue
+        strong = strength >= STRONGEST * strength.max()
+        kernels[p] = kernel_for_autocorrelation(np.average(rho[strong], axis=0, weights=counts[strong]))
+        candidates = np.stack([kernel_autocorrelation(blended_kernel(kernels[p], w)) for w in WEIGHT_GRID])
+        best = WEIGHT_GRID[np.argmin(((rho[:, None, 1:] - candidates[None, :, 1:]) ** 2).sum(-1), axis=1)]
+        weight[p] = np.interp(knots, estimate.signal[p][ok], best)
+    return kernels, knots, weight
 
 
 def kernel_autocorrelation(kernel) -> np.ndarray:
@@ -203,6 +284,7 @@ def fit_noise_extension(estimate, profile, *, correlation=None, iso: float | Non
              "level_knots": jnp.asarray(knots, dtype), "level_variance": jnp.asarray(np.stack(rows), dtype)}
     if correlation is not None:
         shape["correlation_kernel"] = jnp.asarray(fit_correlation_kernel(correlation), dtype)
+        shape.update(correlation_knots=None, correlation_weight=None)   # one kernel at every level
     extended = type(noise)(iso_range=noise.iso_range, **{**_fields(noise), **shape})
     return _profile.replace(profile, noise=extended)
 
@@ -210,6 +292,7 @@ def fit_noise_extension(estimate, profile, *, correlation=None, iso: float | Non
 def _fields(noise) -> dict:
     return {"iso": noise.iso, "shot": noise.shot, "read": noise.read, "level_knots": noise.level_knots,
             "level_variance": noise.level_variance, "correlation_kernel": noise.correlation_kernel,
+            "correlation_knots": noise.correlation_knots, "correlation_weight": noise.correlation_weight,
             "read_excludes_quantisation": noise.read_excludes_quantisation}
 
 

@@ -55,6 +55,7 @@ def without_quantisation(noise, black_level, white_level):
     return type(noise)(iso=noise.iso, shot=noise.shot, read=jnp.asarray(read, noise.read.dtype),
                        iso_range=noise.iso_range, level_knots=noise.level_knots,
                        level_variance=noise.level_variance, correlation_kernel=noise.correlation_kernel,
+                       correlation_knots=noise.correlation_knots, correlation_weight=noise.correlation_weight,
                        read_excludes_quantisation=True)
 
 
