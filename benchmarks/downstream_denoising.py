@@ -1,0 +1,71 @@
+"""The denoising downstream test (Graphics2RAW Table 1 protocol, `g2r_jax.downstream.denoising`)
+on a burst: prints the table (PSNR on WhiteLevel - BlackLevel, the reference's own noise taken
+out), the noise models and the timings.
+
+    python benchmarks/downstream_denoising.py [FOLDER] [--profile NAME_OR_JSON] [--seeds 0 1 2]
+        [--steps 300] [--folds 2] [--cg 16] [--cg-folder ../shared/data/cg/carla]
+
+FOLDER: DNGs of one static scene from one camera (bad files are named and skipped). Without it,
+a synthetic burst of 8 frames (192 x 256, a dim dead-leaves scene, no NoiseProfile tag) is made
+from the profile's noise at --iso in a temporary folder, and its known noise is printed beside
+the rows' models.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+DEFAULT_CG = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "cg" / "carla"
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("folder", nargs="?", type=Path, help="folder of burst DNGs (default: a synthetic burst)")
+    parser.add_argument("--profile", default="s20fe_night", help="shipped profile name or profile JSON")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--folds", type=int, default=2)
+    parser.add_argument("--cg", type=int, default=16, help="number of CG images (0: no CG content)")
+    parser.add_argument("--cg-folder", type=Path, default=DEFAULT_CG)
+    parser.add_argument("--iso", type=float, default=1600.0, help="ISO of the synthetic burst")
+    parser.add_argument("--frames", type=int, default=8, help="frames of the synthetic burst")
+    args = parser.parse_args(argv)
+
+    import g2r_jax
+    from g2r_jax.downstream import bursts, denoising
+
+    started = time.perf_counter()
+    profile = g2r_jax.load_profile(args.profile)
+    cg = sorted(args.cg_folder.glob("*.png"))[:args.cg] if args.cg else []
+    if args.cg and not cg:
+        print(f"no CG images in {args.cg_folder}: CG content left out")
+    contents = ("cg", "scene") if cg else ("scene",)
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = args.folder
+        if folder is None:
+            folder = Path(scratch)
+            _, truth = bursts.write_synthetic_burst(folder, profile, n_frames=args.frames, height=192, width=256,
+                                                    iso=args.iso, seed=0)
+            print(f"synthetic burst: {args.frames} frames 256x192 from {args.profile} at ISO {args.iso:g}; known "
+                  f"noise shot {truth.shot:.3g}, read {truth.read:.3g} (normalised, before rounding)")
+        burst = bursts.read_burst(folder)
+        read_s = time.perf_counter() - started
+        result = denoising.denoising_benchmark(burst, profile, cg, contents=contents, seeds=args.seeds,
+                                               steps=args.steps, folds=args.folds, cg_count=args.cg,
+                                               progress=lambda line: print("  " + line, flush=True))
+    total = time.perf_counter() - started
+    print()
+    print(result.summary())
+    print()
+    print("uncorrected PSNR (against the noisy reference as is):")
+    for key, values in result.psnr_uncorrected.items():
+        print(f"  {key[0]:8s} {key[1]:6s} " + " ".join(f"{v:.2f}" for v in values))
+    print(f"\ntimes: reading {read_s:.1f} s, total {total:.0f} s wall; training per seed (s, all contents and "
+          f"folds): " + ", ".join(f"{row} {sum(s) / len(s):.0f}" for row, s in result.seconds.items()))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,249 @@
+"""Bursts for the denoising test: several DNGs of one static scene from one camera, read into
+normalised CFA planes, their clean references, and the noise they measure themselves.
+
+A burst is the truth a real denoising test needs (Graphics2RAW, Seo et al. ICCV 2023, Table 1;
+the protocol of Plotz and Roth, "Benchmarking Denoising Algorithms with Real Photographs", CVPR
+2017, and of SIDD, Abdelhamed et al. CVPR 2018, which average many frames of a static scene):
+the mean of the other frames of a static scene is a clean reference for each frame.
+
+- `read_burst(source)`: a folder or list of DNGs -> `Burst`. Every file is either a frame or
+  named in `Burst.skipped` with the reason (unreadable, another camera / size / ISO / levels, or
+  not the same static scene as the others); fewer than MIN_FRAMES usable frames is an error.
+- `photon_transfer_noise(burst)`: variance = shot * x + read per CFA position from the frames'
+  own per-pixel temporal means and variances (Janesick, *Photon Transfer*, SPIE 2007, ch. 2-5;
+  `g2r_jax.audit.bursts.temporal_nlf`), with the rounding to DN taken out of `read`.
+- `write_synthetic_burst(folder, profile, ...)`: DNGs of a dead-leaves scene with a known
+  heteroscedastic noise (`g2r_jax.audit.synthetic_bursts`), for tests and the benchmark.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from g2r_jax.io.dng_info import DngError
+
+MIN_FRAMES = 3
+MAX_RESIDUAL_RATIO = 2.0   # a frame differing from the mean of the others by more than this
+#                            times the median frame's mean squared difference is another scene
+MAX_EXPOSURE_CHANGE = 0.05  # a frame whose gain against the others is off by more than 5 %
+
+
+@dataclasses.dataclass(frozen=True)
+class Burst:
+    """Frames of one static scene. `planes` (n, 4, H/2, W/2) float32, x = (DN - BlackLevel) /
+    (WhiteLevel - BlackLevel) per CFA tile position (row-major in the 2 x 2 tile); `black` (4,)
+    DN, `white` DN, `iso`, `cfa_pattern` of the frames; `names` the frames' file names;
+    `skipped` ((file name, reason), ...) for every input file that is not a frame."""
+
+    planes: np.ndarray
+    names: tuple
+    paths: tuple
+    infos: tuple
+    black: np.ndarray
+    white: float
+    iso: float
+    cfa_pattern: tuple
+    skipped: tuple = ()
+
+    @property
+    def n(self) -> int:
+        return self.planes.shape[0]
+
+    @property
+    def span(self) -> np.ndarray:
+        """(4,) DN of the normalised range per tile position: WhiteLevel - BlackLevel."""
+        return self.white - self.black
+
+    def mean_of_others(self, index: int, among=None) -> np.ndarray:
+        """(4, H/2, W/2) mean of the frames in `among` (default: all) other than `index`."""
+        chosen = [k for k in (range(self.n) if among is None else among) if k != index]
+        return self.planes[chosen].mean(0)
+
+
+def _candidates(source) -> tuple[list[Path], list[tuple[str, str]]]:
+    """DNG paths of a folder (every visible file that is not a .dng is named as skipped) or list."""
+    if isinstance(source, (str, Path)) and Path(source).is_dir():
+        files = sorted((f for f in Path(source).iterdir() if not f.name.startswith(".") and f.is_file()),
+                       key=lambda f: f.name)
+        dngs = [f for f in files if f.suffix.lower() == ".dng"]
+        others = [(f.name, f"not a DNG ('{f.suffix or 'no extension'}')") for f in files if f.suffix.lower() != ".dng"]
+        return dngs, others
+    if isinstance(source, (str, Path)):
+        source = [source]
+    paths, skipped = [], []
+    for item in source:
+        path = Path(item)
+        if not path.is_file():
+            skipped.append((path.name or str(path), "no such file"))
+        elif path.suffix.lower() != ".dng":
+            skipped.append((path.name, f"not a DNG ('{path.suffix or 'no extension'}')"))
+        elif path not in paths:
+            paths.append(path)
+    return paths, skipped
+
+
+def _camera_key(info, mosaic) -> tuple:
+    return (mosaic.shape, tuple(int(c) for c in info.cfa_pattern),
+            tuple(np.round(np.resize(np.asarray(info.black_level, np.float64), 4), 3)), float(info.white_level),
+            None if info.iso is None else round(float(info.iso)), info.unique_camera_model or info.model)
+
+
+def _key_difference(key, reference) -> str:
+    names = ("size", "CFA pattern", "BlackLevel", "WhiteLevel", "ISO", "camera model")
+    for name, mine, theirs in zip(names, key, reference):
+        if mine != theirs:
+            show = lambda v: f"{v[1]}x{v[0]}" if name == "size" else str(v)
+            return f"{name} {show(mine)} differs from the burst's {show(theirs)}"
+    return "differs from the burst"
+
+
+def _scene_outliers(planes: np.ndarray) -> dict[int, str]:
+    """{frame index: reason} for frames that are not the same static scene as the others: their
+    mean level against the others' is off by more than MAX_EXPOSURE_CHANGE, or their mean
+    squared difference from it exceeds MAX_RESIDUAL_RATIO times the median frame's (which is
+    the noise alone: (1 + 1/(n-1)) times its variance)."""
+    n = planes.shape[0]
+    total = planes.sum(0, dtype=np.float64)
+    residual, gains = np.empty(n), np.empty(n)
+    for k in range(n):
+        others = (total - planes[k]) / (n - 1)
+        gains[k] = float(planes[k].sum(dtype=np.float64) / max(float(others.sum()), 1e-30))
+        residual[k] = float(np.mean((planes[k] - others) ** 2))
+    typical = float(np.median(residual))
+    out = {}
+    for k in range(n):
+        if residual[k] > MAX_RESIDUAL_RATIO * typical:
+            out[k] = (f"it differs from the other frames' mean {residual[k] / typical:.1f} times more than the "
+                      f"median frame does: not the same static scene (something moved, or the light changed)")
+        elif abs(gains[k] - 1.0) > MAX_EXPOSURE_CHANGE:
+            out[k] = (f"its mean level differs from the other frames' by {100 * (gains[k] - 1):+.1f} % "
+                      f"(more than {100 * MAX_EXPOSURE_CHANGE:.0f} %): not the same exposure of a static scene")
+    return out
+
+
+def read_burst(source, *, min_frames: int = MIN_FRAMES) -> Burst:
+    """A `Burst` from a folder of DNGs or a list of DNG paths (see the module docstring).
+
+    Files that cannot be read, that differ from the most common size / CFA / levels / ISO /
+    camera of the others, or whose scene differs from the others' (`_scene_outliers`) are named
+    in `skipped` with the reason. Raises `DngError` naming `source` (and every skipped file)
+    when fewer than `min_frames` (at least 3) frames remain.
+    """
+    from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels, require_bayer_cfa
+    from g2r_jax.sensor.noise.estimation import to_normalised_planes
+
+    min_frames = max(int(min_frames), MIN_FRAMES)
+    paths, skipped = _candidates(source)
+    read = []
+    for path in paths:
+        try:
+            info = require_bayer_cfa(read_dng_info(path))
+            mosaic = read_dng_pixels(path, info)
+        except Exception as error:  # noqa: BLE001 - DngError, LibRaw, OS errors: named, not fatal
+            skipped.append((path.name, str(getattr(error, "problem", error))))
+            continue
+        if mosaic.shape[0] % 2 or mosaic.shape[1] % 2 or min(mosaic.shape) < 8:
+            skipped.append((path.name, f"active area {mosaic.shape[1]}x{mosaic.shape[0]} is odd or under 8 pixels"))
+            continue
+        read.append((path, info, mosaic))
+    frames = []
+    if read:
+        keys = [_camera_key(info, mosaic) for _, info, mosaic in read]
+        reference = Counter(keys).most_common(1)[0][0]
+        for key, item in zip(keys, read):
+            if key == reference:
+                frames.append(item)
+            else:
+                skipped.append((item[0].name, _key_difference(key, reference)))
+    planes = np.stack([to_normalised_planes(m, info.black_level, info.white_level).astype(np.float32)
+                       for _, info, m in frames]) if frames else np.zeros((0, 4, 1, 1), np.float32)
+    if len(frames) >= MIN_FRAMES:
+        outliers = _scene_outliers(planes)
+        skipped += [(frames[k][0].name, reason) for k, reason in sorted(outliers.items())]
+        keep = [k for k in range(len(frames)) if k not in outliers]
+        frames, planes = [frames[k] for k in keep], planes[keep]
+    where = source if isinstance(source, (str, Path)) else f"burst of {len(paths) + len(skipped)} file(s)"
+    if len(frames) < min_frames:
+        listing = "; ".join(f"{name}: {reason}" for name, reason in skipped) or "none skipped"
+        raise DngError(where, f"a burst needs at least {min_frames} DNG frames of one static scene from one camera, "
+                              f"{len(frames)} usable (skipped: {listing})")
+    info = frames[0][1]
+    return Burst(planes=planes, names=tuple(p.name for p, _, _ in frames), paths=tuple(p for p, _, _ in frames),
+                 infos=tuple(i for _, i, _ in frames), black=np.resize(np.asarray(info.black_level, np.float64), 4),
+                 white=float(info.white_level), iso=float(info.iso) if info.iso else 100.0,
+                 cfa_pattern=tuple(int(c) for c in info.cfa_pattern), skipped=tuple(skipped))
+
+
+def photon_transfer_noise(burst: Burst, frames=None) -> tuple[np.ndarray, np.ndarray]:
+    """(shot (4,), read (4,)) of variance = shot * x + read, normalised, from the temporal mean m
+    and variance s^2 (ddof 1) of every pixel over `frames` (indices; default all) of the burst
+    (photon transfer: Janesick, *Photon Transfer*, SPIE 2007, ch. 2-5). Fixed-pattern noise is
+    the same in every frame and drops out.
+
+    Per CFA position, s^2 is regressed on m over the pixels that never clip: for Gaussian noise
+    s^2 and m are independent and E[s^2] = shot * mu + read, but m = mu + e holds the noise e of
+    a mean of n frames, which would flatten an ordinary fit (regression dilution; binning by m
+    instead biases each bin towards the extremes). The slope is therefore corrected by the
+    known variance of e, mean(s^2) / n: shot = cov(m, s^2) / (var(m) - mean(s^2) / n), read =
+    mean(s^2) - shot * mean(m) (Fuller, *Measurement Error Models*, Wiley 1987, sec. 1.1). The
+    measured variance holds the rounding to integer DN once (1/12 DN^2); it is taken out of
+    `read`, since a simulation rounds its own output. NaN where the pixels do not span a range
+    of signals."""
+    from g2r_jax.sensor.noise.quantisation import rounding_variance
+
+    planes = burst.planes if frames is None else burst.planes[list(frames)]
+    n = planes.shape[0]
+    floor = (-burst.black / burst.span + 0.5 / burst.span)[:, None, None]
+    usable = (planes.max(0) < 0.98) & (planes.min(0) > floor)
+    mean = planes.mean(0, dtype=np.float64)
+    variance = planes.var(0, ddof=1, dtype=np.float64)
+    shot, read = np.full(4, np.nan), np.full(4, np.nan)
+    for p in range(4):
+        m, s2 = mean[p][usable[p]], variance[p][usable[p]]
+        if m.size < 100:
+            continue
+        spread = m.var() - s2.mean() / n
+        if spread <= 0:
+            continue
+        shot[p] = np.mean((m - m.mean()) * (s2 - s2.mean())) / spread
+        read[p] = s2.mean() - shot[p] * m.mean()
+    return shot, read - rounding_variance(burst.black, burst.white)
+
+
+def write_synthetic_burst(folder, profile, *, n_frames: int = 8, height: int = 192, width: int = 256,
+                          iso: float = 1600.0, seed: int = 0, noise_scale: float = 1.0, low: float = 0.004,
+                          high: float = 0.08, fine: bool = True):
+    """Write `n_frames` DNGs (frame_000.dng, ...) of one static dead-leaves scene into `folder`
+    with the profile's levels, CFA and colour tags, and no NoiseProfile tag; return (paths,
+    truth) with truth a `g2r_jax.audit.synthetic_bursts.BurstTruth`.
+
+    The frames' noise is the profile's noise at `iso` (the mean of its four tile positions,
+    `noise_scale` times the variance): DN = round(black + span * (x + n)), n ~ N(0, shot x +
+    read), written in numpy independently of the simulation (`synthetic_bursts.burst`). The
+    scene spans [`low`, `high`] of the range (a dim scene, where denoising matters)."""
+    from g2r_jax import sensor
+    from g2r_jax.audit.synthetic_bursts import BurstTruth, burst, scene_signal
+    from g2r_jax.batch.conversion import dng_info_for
+    from g2r_jax.io.dng_write import write_dng
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    shot, read = (np.asarray(v, np.float64) for v in sensor.noise_parameters(iso, profile.noise))
+    black = np.asarray(profile.black_level, np.float64)
+    truth = BurstTruth(black_tag=float(black.mean()), white=float(profile.white_level), shot=float(shot.mean()),
+                       read=float(read.mean()), iso=float(iso))
+    frames = burst(truth, scene_signal(seed, height, width, low=low, high=high, fine=fine), n_frames, seed + 1,
+                   noise_scale=noise_scale)
+    metadata = {"neutral": np.array([0.5, 1.0, 0.6]), "iso": iso, "noise_shot": shot, "noise_read": read}
+    info = dng_info_for(profile, metadata, height, width, noise=False)
+    info = dataclasses.replace(info, black_level=np.full(4, truth.black_tag))
+    paths = []
+    for k, (mosaic, _) in enumerate(frames):
+        path = folder / f"frame_{k:03d}.dng"
+        write_dng(path, mosaic, info)
+        paths.append(path)
+    return paths, truth
