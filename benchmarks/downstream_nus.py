@@ -63,6 +63,7 @@ def main(argv=None) -> int:
     from PIL import Image
 
     from g2r_jax.downstream import experiment, real_sets, report
+    from g2r_jax.runtime import compile_cache
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cameras", default=",".join(CAMERAS))
@@ -79,6 +80,7 @@ def main(argv=None) -> int:
     if not NUS.is_dir() or not CARLA.is_dir():
         print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
         return 2
+    compile_cache.enable(program="g2r_jax-downstream")
     cameras = args.cameras.split(",")
     rows = args.rows.split(",")
     estimators = tuple(args.estimators.split(","))

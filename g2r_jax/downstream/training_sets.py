@@ -22,7 +22,7 @@ from g2r_jax.downstream import upi as _upi
 
 VIEW_SIZE = 128          # a view's side in pixels: its RAW mosaic bins to one 64 x 64 thumbnail
 VIEW_SCALE = (0.5, 1.0)  # a view's side as a fraction of the image's shorter side
-BATCH = 64               # images per compiled call (a fixed shape: one program per set size)
+BATCH = 250              # images per compiled call (a fixed shape: one program whatever the set size)
 
 
 def linear_images(images) -> list[np.ndarray]:
@@ -73,7 +73,7 @@ def _batches(n: int):
 
 
 def _padded(x, count):
-    """Pad the first axis of `x` to BATCH with copies of its first row (fixed shapes)."""
+    """Pad the first axis of `x` (`count` rows) to BATCH with copies of its first row (fixed shapes)."""
     if len(x) == BATCH:
         return x
     return np.concatenate([x, np.repeat(x[:1], BATCH - count, axis=0)])
@@ -200,7 +200,8 @@ def real_to_linear_srgb(thumbnails: np.ndarray, illuminants: np.ndarray, profile
     """
     neutrals = np.asarray(illuminants, np.float32)
     neutrals = neutrals / neutrals[:, 1:2]
-    matrices, gains = (np.asarray(a, np.float64) for a in _to_srgb_matrices(jnp.asarray(neutrals), profile))
+    parts = [_to_srgb_matrices(_padded(neutrals[a:b], b - a), profile) for a, b in _batches(len(neutrals))]
+    matrices, gains = (np.concatenate([np.asarray(p[i], np.float64) for p in parts])[: len(neutrals)] for i in (0, 1))
     to_srgb = np.linalg.inv(matrices)
     linear = np.einsum("nij,nhwj->nhwi", to_srgb, thumbnails / gains[:, None, None, :])
     peak = np.maximum(linear.reshape(len(linear), -1).max(1), 1e-12)
