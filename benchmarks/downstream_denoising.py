@@ -4,6 +4,7 @@ out), the noise models and the timings.
 
     python benchmarks/downstream_denoising.py [FOLDER] [--profile NAME_OR_JSON] [--seeds 0 1 2]
         [--steps 300] [--folds 2] [--cg 16] [--cg-folder ../shared/data/cg/carla]
+        [--profile-noise-scale 1]
 
 FOLDER: DNGs of one static scene from one camera (bad files are named and skipped). Without it,
 a synthetic burst of 8 frames (192 x 256, a dim dead-leaves scene, no NoiseProfile tag) is made
@@ -32,6 +33,9 @@ def main(argv=None):
     parser.add_argument("--cg-folder", type=Path, default=DEFAULT_CG)
     parser.add_argument("--iso", type=float, default=1600.0, help="ISO of the synthetic burst")
     parser.add_argument("--frames", type=int, default=8, help="frames of the synthetic burst")
+    parser.add_argument("--profile-noise-scale", type=float, default=1.0,
+                        help="multiply the profile's noise variance by this for the rows (not for the synthetic "
+                             "burst): a deliberately wrong profile")
     args = parser.parse_args(argv)
 
     import g2r_jax
@@ -52,6 +56,13 @@ def main(argv=None):
             print(f"synthetic burst: {args.frames} frames 256x192 from {args.profile} at ISO {args.iso:g}; known "
                   f"noise shot {truth.shot:.3g}, read {truth.read:.3g} (normalised, before rounding)")
         burst = bursts.read_burst(folder)
+        if args.profile_noise_scale != 1.0:
+            from g2r_jax.profile import schema
+
+            noise = schema.replace(profile.noise, shot=profile.noise.shot * args.profile_noise_scale,
+                                   read=profile.noise.read * args.profile_noise_scale)
+            profile = schema.replace(profile, noise=noise)
+            print(f"the rows' profile has {args.profile_noise_scale:g} times the noise variance of {args.profile}")
         read_s = time.perf_counter() - started
         result = denoising.denoising_benchmark(burst, profile, cg, contents=contents, seeds=args.seeds,
                                                steps=args.steps, folds=args.folds, cg_count=args.cg,

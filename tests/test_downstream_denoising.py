@@ -112,6 +112,14 @@ def test_training_is_deterministic(burst_folder):
     assert not np.array_equal(losses(5), losses(6))
 
 
+def test_denoising_in_strips_equals_the_whole_frame(monkeypatch):
+    params = denoising.init_denoiser(jax.random.PRNGKey(0))
+    planes = np.random.default_rng(0).uniform(0, 0.1, (4, 50, 24)).astype(np.float32)
+    whole = np.asarray(denoising._denoise(params, planes, 8.0))
+    monkeypatch.setattr(denoising, "TILE", 16)
+    assert np.allclose(denoising.denoise(params, planes, 8.0), whole, rtol=0, atol=1e-6)
+
+
 def test_profile_of_another_cfa_is_refused(burst_folder, true_profile):
     from g2r_jax.profile import schema
 
@@ -129,9 +137,11 @@ def _four_times_too_low(burst_folder, true_profile, base_profile, rows, steps, s
     return good, np.mean(wrong.psnr[("shipped", "scene")])
 
 
+@pytest.mark.slow
 def test_true_noise_beats_a_noise_four_times_too_low(burst_folder, true_profile, base_profile):
     """Content-equal: the same scene, the same training; only the noise model differs. The true
-    profile beats one whose noise is 4x too low (both trainings share one compiled step)."""
+    profile beats one whose noise is 4x too low (both trainings share one compiled step; about
+    50 s on a loaded 2-core machine, hence slow)."""
     good, too_low = _four_times_too_low(burst_folder, true_profile, base_profile, ("shipped",), 150, (0,))
     shipped = good.psnr[("shipped", "scene")][0]
     assert shipped > too_low + 1.0, (shipped, too_low)
