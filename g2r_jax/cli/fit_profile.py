@@ -40,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--illuminant-model", default="auto",
                         choices=["auto", "kernel", "gaussian", "mixture", "locus", "prior", "prior-night",
                                  "prior-day-night"],
-                        help="auto: 'kernel' from one measured illuminant on (a kernel density of the lights along "
+                        help="auto: 'kernel' from 10 measured illuminants on (a kernel density of the lights along "
                              "the camera's Planckian locus, blended with the cross-camera prior; chosen by the "
                              "downstream measurement of docs validation/illuminant_models), 'prior' without any; "
                              "'gaussian': the published Gaussian + convex hull; 'mixture': Gaussians by BIC + hull; "

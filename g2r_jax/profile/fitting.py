@@ -18,6 +18,7 @@ import optimistix as optx
 from g2r_jax.colour import dng_model as _dng
 from g2r_jax.colour.spectrum_locus import distance_outside_locus, is_light_chromaticity
 from g2r_jax.runtime.x64 import enable_x64
+from g2r_jax.illuminants import choice as _illuminant_choice
 from g2r_jax.illuminants import distributions as _illuminants
 from g2r_jax import sensor as _sensor
 from g2r_jax.io.dng_info import DngInfo, DngError
@@ -206,48 +207,24 @@ def noise_from_infos(infos, cfa_pattern, dtype=np.float32) -> _sensor.NoiseModel
     return noise_and_source(infos, cfa_pattern, dtype)[0]
 
 
-PRIOR_KINDS = {"prior": "day", "prior-night": "night", "prior-day-night": "day_night"}
-MIN_LIGHTS_FOR_GAUSSIAN = 10   # below this 'auto' takes the prior (docs: validation/illuminant_prior.md)
+PRIOR_KINDS = _illuminant_choice.PRIOR_KINDS
+ILLUMINANTS_PROVENANCE = "; illuminants: "   # before the illuminant model's reason in a fitted profile's provenance
 
 
 def illuminant_model_for(chromaticities, colour_model, kind: str = "auto", seed: int = 0,
                          dtype=np.float32) -> _illuminants.IlluminantModel:
-    """Choose and fit the illuminant model.
+    """Fit the illuminant model `kind` to the measured lights (r/g, b/g) of one camera.
 
-    `kind`: 'gaussian' (published), 'mixture' (BIC-selected), 'locus' (the single-DNG A-D65 locus
-    of supplement S3), 'prior', 'prior-night', 'prior-day-night' (the camera-independent prior of
-    measured scene lights, `g2r_jax.illuminants.prior`, with its day, night or day+night preset,
-    mapped through `colour_model`), or 'auto': the Gaussian with its hull when at least
-    `MIN_LIGHTS_FOR_GAUSSIAN` distinct, non-collinear illuminants are given (fewer describe a
-    camera's scenes worse than the prior: on the Gehler-Shi cameras a Gaussian of 5 lights is at
-    energy distance 0.086-0.097 from the rest, the prior fitted to other cameras at 0.052-0.053),
-    otherwise the prior's day preset.
+    `kind`: one of `illuminants.choice.KINDS`: 'kernel' (a kernel density of the lights along
+    the camera's Planckian locus, blended with the cross-camera prior), 'gaussian' (published),
+    'mixture' (BIC-selected), 'locus' (supplement S3), 'prior', 'prior-night', 'prior-day-night',
+    or 'auto', which takes the kernel model from `illuminants.choice.MIN_LIGHTS_FOR_KERNEL` (10)
+    distinct measured lights on and the prior's day preset below: chosen by the downstream
+    measurement (an illuminant estimator trained on real images relit to each model's lights,
+    tested on the real NUS images; docs/pages/validation/illuminant_models.md).
+    `illuminants.choice.choose_illuminant_model` gives the same model with the reason for it.
     """
-    points = np.unique(np.round(np.asarray(chromaticities, np.float64).reshape(-1, 2), 9), axis=0)
-    if kind == "locus":
-        return _illuminants.fit_locus(colour_model, dtype=dtype)
-    if kind in PRIOR_KINDS:
-        from g2r_jax.illuminants.prior import model_for_camera
-
-        return model_for_camera(colour_model, PRIOR_KINDS[kind], dtype=dtype)
-    enough = len(points) >= 3
-    if enough:
-        try:
-            _illuminants.convex_hull_halfplanes(points)
-        except ValueError:
-            enough = False
-    if kind == "auto":
-        if not (enough and len(points) >= MIN_LIGHTS_FOR_GAUSSIAN):
-            return illuminant_model_for(chromaticities, colour_model, "prior", seed, dtype)
-        kind = "gaussian"
-    if not enough:
-        raise ValueError(f"the {kind} illuminant model needs at least 3 distinct, non-collinear "
-                         f"illuminants; got {len(points)} (use the prior or the locus model)")
-    if kind == "gaussian":
-        return _illuminants.fit_gaussian(chromaticities, dtype=dtype)
-    if kind == "mixture":
-        return _illuminants.fit_mixture(chromaticities, seed=seed, dtype=dtype)
-    raise ValueError(f"unknown illuminant model {kind!r}")
+    return _illuminant_choice.choose_illuminant_model(chromaticities, colour_model, kind, seed, dtype).model
 
 
 def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model: str = "auto",
@@ -298,7 +275,8 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
         neutrals = [n for n in (as_shot_neutral(i) for i in infos) if n is not None]
         chromaticities = (_illuminants.neutral_to_chromaticity(np.stack(neutrals)) if neutrals
                           else np.zeros((0, 2)))
-    illuminants = illuminant_model_for(chromaticities, colour_model, illuminant_model, seed, dtype)
+    illuminants, illuminant_reason, _ = _illuminant_choice.choose_illuminant_model(
+        chromaticities, colour_model, illuminant_model, seed, dtype)
     noise_source = ""
     black, white, _ = levels_from_infos(infos)   # the CLI reports the note
     if noise is None:
@@ -320,7 +298,8 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
                        make=reference.make, model=reference.model,
                        calibration_illuminants=colour_model.calibration_illuminants,   # the model's order
                        provenance=" ".join(filter(None, [provenance or f"fitted by g2r_jax from {len(infos)} DNG file(s)",
-                                                         noise_source and f"({noise_source})"])),
+                                                         noise_source and f"({noise_source})"]))
+                       + ILLUMINANTS_PROVENANCE + illuminant_reason,
                        opcode_lists=opcodes)
     baseline = float(np.median([i.baseline_exposure for i in infos]))
     return SensorProfile(

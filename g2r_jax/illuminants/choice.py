@@ -1,0 +1,152 @@
+"""Which illuminant model a profile gets, fitted, with a one-line reason.
+
+`choose_illuminant_model` fits the model a user names (`KINDS`) or, for 'auto', the one the
+downstream measurement chose: an illuminant estimator trained on real images relit to lights drawn
+from each model, tested on the real NUS images (docs/pages/validation/illuminant_models.md).
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import NamedTuple
+
+import numpy as np
+
+from g2r_jax.illuminants import distributions as _distributions
+from g2r_jax.illuminants import kernel as _kernel
+
+PRIOR_KINDS = {"prior": "day", "prior-night": "night", "prior-day-night": "day_night"}
+KINDS = ("auto", "kernel", "gaussian", "mixture", "locus", *PRIOR_KINDS)
+MIN_LIGHTS_FOR_KERNEL = 10     # 'auto': the kernel model from this many distinct measured lights, else the prior
+LOCUS_CCT_RANGE = (2000.0, 20000.0)   # the camera's Planckian locus giving the kernels' directions
+MEASUREMENT = "docs/pages/validation/illuminant_models.md"
+PRESET_EVIDENCE = 3.0   # nats: a Bayes factor of e^3 ~ 20, "strong" (Kass & Raftery, JASA 90, 1995, sec. 3.2)
+
+
+class IlluminantChoice(NamedTuple):
+    """The fitted model, why it was chosen (one line) and how many distinct measured lights it saw."""
+
+    model: _distributions.IlluminantModel
+    reason: str
+    lights: int
+
+
+def distinct_lights(chromaticities) -> np.ndarray:
+    """(N, 2) distinct (to 1e-9) finite lights (r/g, b/g) of `chromaticities`."""
+    points = np.asarray(chromaticities, np.float64).reshape(-1, 2)
+    points = points[np.all(np.isfinite(points), axis=1)]
+    return np.unique(np.round(points, 9), axis=0)
+
+
+def _hull_possible(points) -> bool:
+    if len(points) < 3:
+        return False
+    try:
+        _distributions.convex_hull_halfplanes(points)
+    except ValueError:
+        return False
+    return True
+
+
+def camera_locus_tangents(points, colour_model) -> np.ndarray:
+    """Unit tangents of the camera's Planckian locus (`LOCUS_CCT_RANGE`, through its DNG colour
+    model) nearest each light; the x axis where the matrices give too few usable locus points."""
+    locus = _distributions.locus_chromaticities(colour_model, 64, LOCUS_CCT_RANGE)
+    locus = locus[np.all(np.isfinite(locus) & (locus > 0), axis=1)]
+    if len(locus) < 2:
+        return np.tile([1.0, 0.0], (len(points), 1))
+    return _kernel.locus_tangents(points, locus)
+
+
+def _best_prior_preset(points, colour_model, dtype):
+    """(preset, camera model) of the prior preset under which the lights are most likely, the day
+    preset unless another one's log likelihood of all the lights is `PRESET_EVIDENCE` nats higher
+    (without that margin one or two lights picked the night preset for a daylight camera)."""
+    from g2r_jax.illuminants.prior import DEFAULT_PRESET, model_for_camera
+
+    best = None
+    for preset in dict.fromkeys([DEFAULT_PRESET, *PRIOR_KINDS.values()]):
+        with warnings.catch_warnings(record=True) as caught:   # only the chosen preset's warnings matter
+            warnings.simplefilter("always")
+            model = model_for_camera(colour_model, preset, dtype=dtype)
+        score = float(np.sum(_distributions.mixture_log_likelihood(model, points)))
+        if best is None or score > best[0] + PRESET_EVIDENCE:
+            best = (score, preset, model, caught)
+    for record in best[3]:
+        warnings.warn_explicit(record.message, record.category, record.filename, record.lineno)
+    return best[1], best[2]
+
+
+def _count(n: int) -> str:
+    return f"{n} measured light{'' if n == 1 else 's'}"
+
+
+def fit_kernel_for_camera(points, colour_model, dtype=np.float32) -> tuple:
+    """(model, words) of the kernel model (`kernel.fit_kernel`) of `points` in this camera,
+    blended with the prior preset most likely for them."""
+    tangents = camera_locus_tangents(points, colour_model)
+    preset, prior = _best_prior_preset(points, colour_model, dtype)
+    along, across = _kernel.choose_bandwidths(points, tangents)
+    model = _kernel.fit_kernel(points, tangents, prior=prior, bandwidths=(along, across), dtype=dtype)
+    share = _kernel.PRIOR_PSEUDO_LIGHTS / (len(points) + _kernel.PRIOR_PSEUDO_LIGHTS)
+    how = ("leave-one-out likelihood" if len(points) >= _kernel.MIN_LIGHTS_FOR_CV
+           else f"fixed: fewer than {_kernel.MIN_LIGHTS_FOR_CV} lights")
+    words = (f"kernel density of the {_count(len(points))} along the camera's Planckian locus "
+             f"(bandwidths {along:.3g} along, {across:.3g} across, {how}) with {share:.0%} of the "
+             f"cross-camera prior ({preset} preset)")
+    return model, words
+
+
+def choose_illuminant_model(chromaticities, colour_model, kind: str = "auto", seed: int = 0,
+                            dtype=np.float32) -> IlluminantChoice:
+    """Fit the illuminant model `kind` (one of `KINDS`) to the measured lights.
+
+    **Arguments:** `chromaticities`: (N, 2) measured scene lights (r/g, b/g), N >= 0;
+    `colour_model`: the camera's `DngColourModel` (for the prior, the locus and the kernels'
+    directions); `kind`: 'kernel' (`illuminants.kernel`), 'gaussian' (published: one Gaussian and
+    the lights' convex hull), 'mixture' (BIC-selected Gaussians and the hull), 'locus' (the
+    calibration matrices' CCT locus, supplement S3), 'prior', 'prior-night', 'prior-day-night'
+    (`illuminants.prior` with that preset) or 'auto': the kernel model from `MIN_LIGHTS_FOR_KERNEL`
+    distinct lights, else the prior's day preset (chosen by the downstream measurement of
+    `MEASUREMENT`); `seed`: the mixture's EM initialisation.
+
+    **Returns:** an `IlluminantChoice`. Raises ValueError for an unknown kind, or for 'gaussian' or
+    'mixture' without 3 distinct, non-collinear lights.
+    """
+    if kind not in KINDS:
+        raise ValueError(f"unknown illuminant model {kind!r}; known: {', '.join(KINDS)}")
+    points = distinct_lights(chromaticities)
+    n = len(points)
+    lights = _count(n)
+    if kind == "auto":
+        if n >= MIN_LIGHTS_FOR_KERNEL:
+            model, words = fit_kernel_for_camera(points, colour_model, dtype)
+            return IlluminantChoice(model, f"kernel (auto, {lights} >= {MIN_LIGHTS_FOR_KERNEL}): {words}; "
+                                           f"chosen by the downstream measurement in {MEASUREMENT}", n)
+        kind, why = "prior", (f"prior (auto: {lights}, fewer than the {MIN_LIGHTS_FOR_KERNEL} from which "
+                              f"the kernel model did better downstream, {MEASUREMENT})")
+    else:
+        why = f"{kind} (asked for; {lights})"
+    if kind == "locus":
+        return IlluminantChoice(_distributions.fit_locus(colour_model, dtype=dtype),
+                                f"{why}: the calibration matrices' A-D65 CCT locus, no measured light used", n)
+    if kind in PRIOR_KINDS:
+        from g2r_jax.illuminants.prior import model_for_camera
+
+        return IlluminantChoice(model_for_camera(colour_model, PRIOR_KINDS[kind], dtype=dtype),
+                                f"{why}: the cross-camera prior of measured scene lights "
+                                f"({PRIOR_KINDS[kind]} preset), no measured light used", n)
+    if kind == "kernel":
+        if n == 0:
+            raise ValueError("the kernel illuminant model needs at least one measured illuminant "
+                             "(use the prior or the locus model)")
+        model, words = fit_kernel_for_camera(points, colour_model, dtype)
+        return IlluminantChoice(model, f"{why}: {words}", n)
+    if not _hull_possible(points):
+        raise ValueError(f"the {kind} illuminant model needs at least 3 distinct, non-collinear "
+                         f"illuminants; got {n} (use the kernel, the prior or the locus model)")
+    if kind == "gaussian":
+        return IlluminantChoice(_distributions.fit_gaussian(chromaticities, dtype=dtype),
+                                f"{why}: one Gaussian and the lights' convex hull", n)
+    model = _distributions.fit_mixture(chromaticities, seed=seed, dtype=dtype)
+    return IlluminantChoice(model, f"{why}: {len(model.weights)} Gaussian(s) by BIC and the lights' convex hull", n)
