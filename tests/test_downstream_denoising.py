@@ -82,6 +82,10 @@ def test_reference_noise_is_taken_out_of_the_psnr(burst_folder):
     expected = 10 * np.log10(1 / true_variance)
     corrected = [denoising.psnr(burst.planes[i], *denoising.reference_and_variance(burst, i)) for i in range(burst.n)]
     raw = [denoising.psnr(burst.planes[i], denoising.reference_and_variance(burst, i)[0]) for i in range(burst.n)]
+    others = np.delete(burst.planes, 2, axis=0).astype(np.float64)
+    reference, variance = denoising.reference_and_variance(burst, 2)
+    assert np.allclose(reference, others.mean(0), atol=1e-7)
+    assert variance == pytest.approx(np.mean(others.var(0, ddof=1)) / 7, rel=1e-6)
     assert np.mean(corrected) == pytest.approx(expected, abs=0.15)
     assert np.mean(corrected) - np.mean(raw) == pytest.approx(10 * np.log10(1 + 1 / 7), abs=0.1)
 

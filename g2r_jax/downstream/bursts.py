@@ -197,13 +197,13 @@ def photon_transfer_noise(burst: Burst, frames=None) -> tuple[np.ndarray, np.nda
 
     planes = burst.planes if frames is None else burst.planes[list(frames)]
     n = planes.shape[0]
-    floor = (-burst.black / burst.span + 0.5 / burst.span)[:, None, None]
-    usable = (planes.max(0) < 0.98) & (planes.min(0) > floor)
-    mean = planes.mean(0, dtype=np.float64)
-    variance = planes.var(0, ddof=1, dtype=np.float64)
+    floor = -burst.black / burst.span + 0.5 / burst.span
     shot, read = np.full(4, np.nan), np.full(4, np.nan)
-    for p in range(4):
-        m, s2 = mean[p][usable[p]], variance[p][usable[p]]
+    for p in range(4):   # one CFA plane at a time: a 12-MP burst's float64 copies stay small
+        plane = planes[:, p]
+        usable = (plane.max(0) < 0.98) & (plane.min(0) > floor[p])
+        m = plane.mean(0, dtype=np.float64)[usable]
+        s2 = plane.var(0, ddof=1, dtype=np.float64)[usable]
         if m.size < 100:
             continue
         spread = m.var() - s2.mean() / n

@@ -312,11 +312,26 @@ def psnr(denoised, reference, reference_variance=0.0) -> float:
     return 10.0 * np.log10(1.0 / corrected) if corrected > 0 else float("nan")
 
 
-def reference_and_variance(burst: Burst, index: int):
+def reference_and_variance(burst: Burst, index: int, sums=None):
     """(reference (4, H, W), its mean noise variance): the mean of the other frames and the mean
-    over pixels of their sample variance (ddof 1) / (n - 1)."""
-    others = np.delete(burst.planes, index, axis=0).astype(np.float64)
-    return others.mean(0), float(np.mean(others.var(0, ddof=1)) / others.shape[0])
+    over pixels of their sample variance (ddof 1) / (n - 1). `sums`: `frame_sums(burst)`, so
+    that many frames cost one pass over the burst."""
+    n = burst.n
+    total, squares = frame_sums(burst) if sums is None else sums
+    frame = burst.planes[index].astype(np.float64)
+    reference = (total - frame) / (n - 1)
+    variance = (squares - frame * frame - (n - 1) * reference * reference) / (n - 2)
+    return reference, float(np.mean(variance) / (n - 1))
+
+
+def frame_sums(burst: Burst):
+    """(sum, sum of squares) of the burst's frames, float64 (4, H, W)."""
+    total, squares = np.zeros(burst.planes.shape[1:]), np.zeros(burst.planes.shape[1:])
+    for frame in burst.planes:
+        frame = frame.astype(np.float64)
+        total += frame
+        squares += frame * frame
+    return total, squares
 
 
 # ----------------------------------------------------------------------------- the benchmark
@@ -450,15 +465,20 @@ def denoising_benchmark(burst, profile, cg_images=(), *, rows=ROWS, contents=CON
     if "real" in rows:
         noise["real"] = "the burst's own frames (training folds)"
     test_folds = _folds(burst.n, folds)
-    references = [reference_and_variance(burst, i) for i in range(burst.n)]
-    noisy_psnr = float(np.mean([psnr(burst.planes[i], *references[i]) for i in range(burst.n)]))
+    sums = frame_sums(burst)
+    reference_variance = [reference_and_variance(burst, i, sums)[1] for i in range(burst.n)]
+    reference = lambda i: (sums[0] - burst.planes[i]) / (burst.n - 1)
+    noisy_psnr = float(np.mean([psnr(burst.planes[i], reference(i), reference_variance[i]) for i in range(burst.n)]))
     gain = 0.5 / max(float(np.quantile(burst.planes.mean(0), 0.99)), 1e-4)
     cg = _load_cg(cg_images, cg_count) if "cg" in contents and synthetic else None
 
     def score(params, frames):
-        denoised = {i: denoise(params, burst.planes[i], gain) for i in frames}
-        return ({i: psnr(denoised[i], *references[i]) for i in frames},
-                {i: psnr(denoised[i], references[i][0]) for i in frames})
+        corrected, raw = {}, {}
+        for i in frames:
+            denoised = denoise(params, burst.planes[i], gain)
+            corrected[i] = psnr(denoised, reference(i), reference_variance[i])
+            raw[i] = psnr(denoised, reference(i))
+        return corrected, raw
 
     results = {(r, c): [] for r in rows for c in contents if not (r == "real" and c == "cg")}
     uncorrected = {k: [] for k in results}
