@@ -149,3 +149,16 @@ def test_night_lights_keep_their_sodium_lamps_in_the_kernel_model(shared_data):
     sodium = np.mean(measured[:, 0] > 1.0)
     assert sodium > 0.03                      # 6 of the 105
     assert abs(np.mean(samples[:, 0] > 1.0) - sodium) < 0.3 * sodium
+
+
+@pytest.mark.slow
+def test_audit_magnitude_is_the_energy_distance_and_ranks_a_hull_filling_gaussian_above_the_kernel(canon):
+    from g2r_jax.audit.causes.illuminant_distribution import CAUSE, DEGREES_PER_ENERGY
+
+    points, _, tangents = arc(60, np.random.default_rng(7))
+    files = [{"neutral": np.array([r, 1.0, b])} for r, b in points]
+    found = {}
+    for name, model in (("gaussian", il.fit_gaussian(points)), ("kernel", kd.fit_kernel(points, tangents))):
+        found[name] = CAUSE.test(files, [], replace(canon, illuminants=model), n_permutations=200)
+        assert f"{DEGREES_PER_ENERGY * found[name]['magnitude']:.2g} deg" in found[name]["evidence"]
+    assert found["gaussian"]["magnitude"] > 3 * found["kernel"]["magnitude"] > 0

@@ -42,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
                                  "prior-day-night"],
                         help="auto: 'kernel' from 10 measured illuminants on (a kernel density of the lights along "
                              "the camera's Planckian locus, blended with the cross-camera prior; chosen by the "
-                             "downstream measurement of docs validation/illuminant_models), 'prior' without any; "
+                             "downstream measurement of docs validation/illuminant_models), else 'prior'; "
                              "'gaussian': the published Gaussian + convex hull; 'mixture': Gaussians by BIC + hull; "
                              "'prior': the camera-independent prior of measured day lights (-night / -day-night "
                              "presets); 'locus': the A-D65 CCT locus of the calibration matrices (supplement S3)")

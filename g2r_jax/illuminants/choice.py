@@ -19,7 +19,7 @@ PRIOR_KINDS = {"prior": "day", "prior-night": "night", "prior-day-night": "day_n
 KINDS = ("auto", "kernel", "gaussian", "mixture", "locus", *PRIOR_KINDS)
 MIN_LIGHTS_FOR_KERNEL = 10     # 'auto': the kernel model from this many distinct measured lights, else the prior
 LOCUS_CCT_RANGE = (2000.0, 20000.0)   # the camera's Planckian locus giving the kernels' directions
-MEASUREMENT = "docs/pages/validation/illuminant_models.md"
+MEASUREMENT = "docs validation/illuminant_models"
 PRESET_EVIDENCE = 3.0   # nats: a Bayes factor of e^3 ~ 20, "strong" (Kass & Raftery, JASA 90, 1995, sec. 3.2)
 
 
@@ -121,10 +121,10 @@ def choose_illuminant_model(chromaticities, colour_model, kind: str = "auto", se
     if kind == "auto":
         if n >= MIN_LIGHTS_FOR_KERNEL:
             model, words = fit_kernel_for_camera(points, colour_model, dtype)
-            return IlluminantChoice(model, f"kernel (auto, {lights} >= {MIN_LIGHTS_FOR_KERNEL}): {words}; "
-                                           f"chosen by the downstream measurement in {MEASUREMENT}", n)
-        kind, why = "prior", (f"prior (auto: {lights}, fewer than the {MIN_LIGHTS_FOR_KERNEL} from which "
-                              f"the kernel model did better downstream, {MEASUREMENT})")
+            return IlluminantChoice(model, f"kernel (auto, {lights} >= {MIN_LIGHTS_FOR_KERNEL}, by the "
+                                           f"downstream measurement in {MEASUREMENT}): {words}", n)
+        kind, why = "prior", (f"prior (auto, {lights} < {MIN_LIGHTS_FOR_KERNEL}, by the downstream "
+                              f"measurement in {MEASUREMENT})")
     else:
         why = f"{kind} (asked for; {lights})"
     if kind == "locus":

@@ -4,6 +4,15 @@ Measures the as-shot neutrals (r/g, b/g); tested by the energy test against samp
 and a parametric-bootstrap likelihood test, Bonferroni-combined; extension: a Gaussian mixture
 (`illuminants.fit_mixture`) with shrunk covariances and the neutrals' hull; validated by the mean
 negative log density of held-out neutrals (no re-simulation needed).
+
+The magnitude is the energy distance (Szekely & Rizzo 2013, eq. 2) between the neutrals and
+`PREDICTIVE_SAMPLES` draws of the model: the statistic that predicted the downstream effect of an
+illuminant model (an illuminant estimator trained on real images relit to the model's lights,
+tested on the real NUS images, against the same images relit to their real lights): over 3 cameras
+x 4 models (gaussian, mixture, kernel, prior) Spearman 0.81, Pearson 0.89 with the excess error,
+`DEGREES_PER_ENERGY` deg per unit (docs/pages/validation/illuminant_models.md). It separates
+models costing tenths of a degree from those costing none; it does not order models closer than
+about 0.005. The evidence states the estimate as an order of magnitude.
 """
 
 from __future__ import annotations
@@ -17,7 +26,9 @@ from g2r_jax.audit import significance
 from g2r_jax.audit.causes.base import Cause
 
 SHRINKAGE = 3.0   # pseudo-points pulling mixture covariances towards the pooled covariance
-REFERENCE_SAMPLES = 200
+REFERENCE_SAMPLES = 200      # model draws in the permutation and bootstrap tests
+PREDICTIVE_SAMPLES = 2000    # model draws for the magnitude (energy distance; its sampling bias ~1/n)
+DEGREES_PER_ENERGY = 10.0   # deg per unit energy distance: slope through 0 over 12 camera x model pairs, 9.8
 
 
 def neutral_chromaticities(file_stats) -> np.ndarray:
@@ -38,7 +49,7 @@ def illuminant_samples(model, n: int, seed: int) -> np.ndarray:
 class IlluminantDistribution(Cause):
     name = "illuminant_distribution"
     statistic = ("energy distance and mean log density of the as-shot neutrals (r/g, b/g) against the "
-                 "profile's illuminant model")
+                 "profile's illuminant model (the energy distance predicts the downstream cost)")
     metric = "mean negative log density of held-out as-shot neutrals (r/g, b/g) under the model"
 
     def test(self, measured, simulated, profile, *, n_permutations=2000, seed=0):
@@ -56,12 +67,15 @@ class IlluminantDistribution(Cause):
             points, lambda x: _illuminants.mixture_log_likelihood(model, x),
             lambda m, s: illuminant_samples(model, m, s + 1), n_boot=n_permutations, seed=seed)
         p = min(1.0, 2 * min(energy["p"], likelihood["p"]))
+        distance = _illuminants.energy_distance(illuminant_samples(model, PREDICTIVE_SAMPLES, seed + 2), points)
         return {"cause": self.name, "score": max(energy["score"], likelihood["score"]), "p": p,
-                "magnitude": energy["energy"], "statistic": self.statistic,
-                "evidence": f"energy distance {energy['energy']:.4f} between {len(points)} as-shot neutrals and "
-                            f"{REFERENCE_SAMPLES} profile samples (permutation p = {energy['p']:.4g}); mean log "
-                            f"density under the profile {likelihood['observed']:.2f} (bootstrap p = "
-                            f"{likelihood['p']:.4g})", "difference": []}
+                "magnitude": distance, "statistic": self.statistic,
+                "evidence": f"energy distance {distance:.4f} between {len(points)} as-shot neutrals and "
+                            f"{PREDICTIVE_SAMPLES} profile samples (about {DEGREES_PER_ENERGY * distance:.2g} deg more "
+                            f"error for an illuminant estimator trained on the simulation than on these lights, "
+                            f"by the NUS measurement; permutation p = {energy['p']:.4g} against "
+                            f"{REFERENCE_SAMPLES} samples); mean log density under the profile "
+                            f"{likelihood['observed']:.2f} (bootstrap p = {likelihood['p']:.4g})", "difference": []}
 
     def plot(self, measured, simulated, profile, extended=None):
         points = neutral_chromaticities(measured)
