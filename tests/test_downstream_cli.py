@@ -78,3 +78,36 @@ def test_check_runs_names_bad_files_and_writes_the_report(camera_folders, tmp_pa
     assert document["content"] and "excess" in document["content"][0]
     assert "| row |" in (report / "report.md").read_text()
     assert not list(report.glob("*.tmp"))
+
+
+def test_burst_check_adds_denoising_and_names_a_frame_it_cannot_use(camera_folders, tmp_path, capsys):
+    from g2r_jax.downstream.bursts import write_synthetic_burst
+
+    dngs, cg = camera_folders
+    burst = tmp_path / "burst"
+    burst.mkdir()
+    write_synthetic_burst(burst, g2r_jax.load_profile("NikonD40"), n_frames=4, height=128, width=160)
+    (burst / "frame_zz.dng").write_bytes(b"II*\x00broken")
+    report = tmp_path / "report"
+    status, out, err = run(capsys, "--measured", dngs, "--cg", cg, "--report", report, "--profile", "NikonD40",
+                           "--burst", burst, "--denoiser-steps", 20, "--estimators", "moments", "--seeds", 1,
+                           "--n", 64, "--folds", 2, "--quiet")
+    assert status == 1 and "frame_zz.dng" in err
+    document = json.loads((report / "report.json").read_text())
+    psnr = document["denoising"]["psnr"]
+    assert {"shipped/cg", "upi/cg", "real/scene", "truth/scene"} <= set(psnr)
+    assert all(np.isfinite(v).all() for v in psnr.values())
+    assert "Denoising on the burst" in (report / "report.md").read_text()
+
+
+def test_a_burst_too_short_is_refused_before_training(camera_folders, tmp_path, capsys):
+    from g2r_jax.downstream.bursts import write_synthetic_burst
+
+    dngs, cg = camera_folders
+    burst = tmp_path / "burst"
+    burst.mkdir()
+    write_synthetic_burst(burst, g2r_jax.load_profile("NikonD40"), n_frames=2, height=128, width=160)
+    status, _, err = run(capsys, "--measured", dngs, "--cg", cg, "--report", tmp_path / "r", "--burst", burst,
+                         "--quiet")
+    assert status == 2 and str(burst) in err
+    assert not (tmp_path / "r" / "report.json").exists()

@@ -43,6 +43,8 @@ def _parser() -> argparse.ArgumentParser:
                              "g2r-fit-profile would; its lights are refitted per fold)")
     parser.add_argument("--burst", metavar="DNG_DIR",
                         help="also the denoising check: a folder of DNGs of one static scene (>= 3 frames)")
+    parser.add_argument("--denoiser-steps", type=int, default=300, metavar="STEPS",
+                        help="Adam steps per denoiser training of the burst check (default 300)")
     parser.add_argument("--estimators", default=DEFAULT_ESTIMATORS,
                         help=f"comma-separated, of cnn, moments, histogram (default {DEFAULT_ESTIMATORS})")
     parser.add_argument("--seeds", type=int, default=2, help="repetitions with new synthetic sets (default 2)")
@@ -66,8 +68,8 @@ def check_arguments(args) -> str | None:
     unknown = [e for e in args.estimators.split(",") if e not in ESTIMATORS]
     if unknown or not args.estimators:
         return f"--estimators {args.estimators}: expected some of {', '.join(ESTIMATORS)}"
-    if args.seeds < 1 or args.n < 50 or args.folds < 2:
-        return "--seeds must be >= 1, --n >= 50 and --folds >= 2"
+    if args.seeds < 1 or args.n < 50 or args.folds < 2 or args.denoiser_steps < 1:
+        return "--seeds must be >= 1, --n >= 50, --folds >= 2 and --denoiser-steps >= 1"
     if args.profile is not None:
         try:
             profile_path(args.profile)
@@ -76,15 +78,15 @@ def check_arguments(args) -> str | None:
     return output_folder_problem("--report", args.report)
 
 
-def read_cg_images(paths, say) -> tuple[list, list]:
-    """Linear float32 CG images and the (path, reason) of those that cannot be used."""
+def read_cg_images(paths, say) -> tuple[list, list, list]:
+    """Linear float32 CG images, their paths, and the (path, reason) of those that cannot be used."""
     import numpy as np
 
     from g2r_jax.colour.conversions import srgb_to_linear
     from g2r_jax.io.dng_info import DngError
     from g2r_jax.io.images import list_inputs, read_image
 
-    images, skipped = [], []
+    images, used, skipped = [], [], []
     for path in list_inputs(paths):
         try:
             values, encoding = read_image(path)
@@ -99,9 +101,10 @@ def read_cg_images(paths, say) -> tuple[list, list]:
         else:   # scene-linear EXR: its 99.5th percentile is taken as the render's white
             linear = values / max(float(np.percentile(values.mean(-1), 99.5)), 1e-6)
         images.append(np.clip(linear, 0.0, 1.0).astype(np.float32))
+        used.append(path)
     if say:
         say(f"{len(images)} CG image(s) read")
-    return images, skipped
+    return images, used, skipped
 
 
 def _run(args) -> int:
@@ -126,11 +129,18 @@ def _run(args) -> int:
                                                 f"{needed} (cross-validated real training)")
     if say:
         say(f"{len(real.images)} real DNG(s) of {real.name!r}, labelled by their {real_sets.DNG_LABEL}")
-    cg, skipped = read_cg_images(args.cg, say)
+    cg, cg_paths, skipped = read_cg_images(args.cg, say)
     for path, reason in skipped:
         bad(path, reason)
     if not cg:
         raise DngError(" ".join(args.cg), "no usable CG image")
+    burst = None
+    if args.burst:   # read first: a burst that cannot be used is refused before minutes of training
+        from g2r_jax.downstream.bursts import read_burst
+
+        burst = read_burst(args.burst)
+        for name, reason in burst.skipped:
+            bad(name, reason)
     profile = _profile(args, real)
     rows = [r for r in experiment.DEFAULT_ROWS if args.profile is not None or r != "shipped"]
     estimators = tuple(args.estimators.split(","))
@@ -141,29 +151,48 @@ def _run(args) -> int:
     round_trip = g2r_set(real_to_linear_srgb(real.images, real.illuminants, profile), profile, 0,
                          neutrals=real.illuminants)
     differences = content.compare(synthetic, (real.images, real.illuminants), round_trip)
-    document = {"camera": real.name, "label": real.label, "files": list(real.files),
-                "problems": [{"path": p, "reason": r} for p, r in problems], **result.to_dict(),
+    document = {"camera": real.name, "label": real.label, "files": list(real.files), **result.to_dict(),
                 "decomposition": {e: report.decomposition(result, e) for e in estimators},
                 "content": differences}
     sentences = [report.sentence(result, e, differences) for e in estimators]
-    if args.burst:
+    denoised = None
+    if burst is not None:
         from g2r_jax.downstream import denoising
 
-        document["denoising"] = denoising.check_burst(args.burst, profile, cg, seed=0, progress=say)
+        denoised = denoising.denoising_benchmark(burst, profile, cg_paths, seeds=tuple(range(args.seeds)),
+                                                 steps=args.denoiser_steps, progress=say)
+        document["denoising"] = {"psnr": {f"{r}/{c}": v for (r, c), v in denoised.psnr.items()},
+                                 "noisy_psnr": denoised.noisy_psnr, "noise": denoised.noise,
+                                 "frames": list(denoised.frames), "iso": denoised.iso}
+        sentences.append(denoising_sentence(denoised))
+    document["problems"] = [{"path": p, "reason": r} for p, r in problems]
     folder = Path(args.report)
     folder.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(folder / "report.json", (json.dumps(document, indent=1, default=float) + "\n").encode())
     markdown = [f"# Downstream check: {real.name}", "", f"Real files: {len(real.images)}; labels: {real.label}.", "",
                 *sentences, "", report.table(result), "", "## What differs in the CG content", "",
                 report.content_table(differences), ""]
+    if denoised is not None:
+        markdown += ["## Denoising on the burst", "", denoised.summary(), ""]
     atomic_write_bytes(folder / "report.md", "\n".join(markdown).encode())
     plotted = report.plot(result, folder / "errors.png")
-    for line in sentences:
-        print(line)
+    print("Result: " + sentences[0])
     print(f"report: {folder / 'report.md'} (and report.json{', errors.png' if plotted else ''})")
     if problems:
         print(f"g2r-downstream: {len(problems)} file(s) left out (see above)", file=sys.stderr)
     return 1 if problems else 0
+
+
+def denoising_sentence(result) -> str:
+    """One sentence: the denoiser trained with g2r_jax's noise on the CG content against UPI's and
+    real pairs, on the burst's held-out frames."""
+    import numpy as np
+
+    mean = {key: float(np.mean(v)) for key, v in result.psnr.items() if len(v)}
+    parts = [f"{label} {mean[key]:.2f} dB" for key, label in
+             ((("shipped", "cg"), "g2r_jax noise on the CG images"), (("upi", "cg"), "UPI noise"),
+              (("real", "scene"), "real pairs of the burst")) if key in mean]
+    return (f"denoising the burst's held-out frames (noisy {result.noisy_psnr:.2f} dB): " + ", ".join(parts) + ".")
 
 
 def _profile(args, real):
