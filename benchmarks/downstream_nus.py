@@ -10,9 +10,9 @@ FujifilmXM1 and SamsungNX2000 have none: their Adobe ColorMatrix pair from
 exposure), lights from the cross-camera prior mapped through their matrices (as shipped
 profiles without measured lights have them).
 
-    python benchmarks/downstream_nus.py [--cameras Canon600D,NikonD40] [--seeds 3] [--n 1000]
-        [--estimators cnn,moments] [--rows ...] [--illuminant-model auto] [--lights 25]
-        [--json out/downstream_nus.json] [--markdown out/downstream_nus.md]
+    python benchmarks/downstream_nus.py [--cameras Canon600D,NikonD40] [--seeds 3] [--n 500]
+        [--estimators cnn,moments,histogram] [--rows ...] [--illuminant-model auto] [--lights 25]
+        [--jobs 2] [--json out/downstream_nus.json] [--markdown out/downstream_nus.md]
 
 Prints one table per camera as it finishes, then the summary across cameras.
 """
@@ -60,49 +60,44 @@ def other_camera(name: str, cameras) -> str:
 
 
 def main(argv=None) -> int:
-    from PIL import Image
-
-    from g2r_jax.downstream import experiment, real_sets, report
-    from g2r_jax.runtime import compile_cache
+    from g2r_jax.downstream import experiment, report
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cameras", default=",".join(CAMERAS))
     parser.add_argument("--rows", default=",".join(experiment.ROWS))
-    parser.add_argument("--estimators", default="cnn,moments")
+    parser.add_argument("--estimators", default="cnn,moments,histogram")
     parser.add_argument("--seeds", type=int, default=3)
-    parser.add_argument("--n", type=int, default=1000)
+    parser.add_argument("--n", type=int, default=500)
     parser.add_argument("--illuminant-model", default="auto")
     parser.add_argument("--lights", type=int, help="fit the lights to this many training files only "
                         "(the number-of-DNGs ablation of Table S6)")
+    parser.add_argument("--jobs", type=int, default=1, help="cameras run in this many processes at once")
     parser.add_argument("--json", type=Path)
     parser.add_argument("--markdown", type=Path)
     args = parser.parse_args(argv)
     if not NUS.is_dir() or not CARLA.is_dir():
         print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
         return 2
-    compile_cache.enable(program="g2r_jax-downstream")
     cameras = args.cameras.split(",")
     rows = args.rows.split(",")
     estimators = tuple(args.estimators.split(","))
-    cg = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))]
     start = time.perf_counter()
-    results, lines = {}, []
-    for name in cameras:
-        real = real_sets.load_nus(NUS / f"{name}.npz")
-        profile = camera_profile(name)
-        other = None
-        if "other_content" in rows:
-            partner = other_camera(name, cameras)
-            other = (real_sets.load_nus(NUS / f"{partner}.npz"), camera_profile(partner))
-        result = experiment.illuminant_experiment(
-            real, profile, cg, rows=rows, estimators=estimators, seeds=tuple(range(args.seeds)), n=args.n,
-            illuminant_model=args.illuminant_model, lights=args.lights, other=other,
-            progress=lambda m: print(f"  {m}", file=sys.stderr, flush=True))
-        results[name] = result
-        block = [f"## {name} ({len(real.images)} real images; {result.seconds:.0f} s)", "", report.table(result), ""]
+    jobs = [(name, rows, estimators, args.seeds, args.n, args.illuminant_model, args.lights, cameras) for name in cameras]
+    if args.jobs > 1:
+        import multiprocessing
+
+        with multiprocessing.get_context("spawn").Pool(args.jobs) as pool:
+            finished = pool.imap(run_camera, jobs)
+            results = dict(zip(cameras, finished))
+    else:
+        results = {name: run_camera(job) for name, job in zip(cameras, jobs)}
+    lines = []
+    for name, result in results.items():
+        block = [f"## {name} ({len(result.errors[(rows[0], estimators[0])][0])} real images; {result.seconds:.0f} s)",
+                 "", report.table(result), ""]
         block += [report.sentence(result, e) for e in estimators] + [""]
-        print("\n".join(block), flush=True)
         lines += block
+    print("\n".join(lines), flush=True)
     summary = summary_table(results, rows, estimators)
     total = time.perf_counter() - start
     lines += ["## All cameras: mean error (degrees), pooled over seeds", "", summary, "",
@@ -117,6 +112,27 @@ def main(argv=None) -> int:
                     for name, r in results.items()}
         args.json.write_text(json.dumps({"seconds": total, "n": args.n, "cameras": document}, indent=1))
     return 0
+
+
+def run_camera(job):
+    """One camera's experiment (a worker of --jobs)."""
+    from PIL import Image
+
+    from g2r_jax.downstream import experiment, real_sets
+    from g2r_jax.runtime import compile_cache
+
+    compile_cache.enable(program="g2r_jax-downstream")
+    name, rows, estimators, seeds, n, illuminant_model, lights, cameras = job
+    cg = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))]
+    real = real_sets.load_nus(NUS / f"{name}.npz")
+    other = None
+    if "other_content" in rows:
+        partner = other_camera(name, cameras)
+        other = (real_sets.load_nus(NUS / f"{partner}.npz"), camera_profile(partner))
+    return experiment.illuminant_experiment(
+        real, camera_profile(name), cg, rows=rows, estimators=estimators, seeds=tuple(range(seeds)), n=n,
+        illuminant_model=illuminant_model, lights=lights, other=other,
+        progress=lambda m: print(f"  {m}", file=sys.stderr, flush=True))
 
 
 def summary_table(results, rows, estimators) -> str:

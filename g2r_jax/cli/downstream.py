@@ -20,7 +20,7 @@ EXAMPLES = """  g2r-downstream --measured my_camera_dngs/ --cg renders/ --report
   g2r-downstream --measured my_camera_dngs/ --cg renders/ --profile my_camera.json --report downstream/ --seeds 3
   g2r-downstream --measured dngs/ --cg renders/ --burst burst_dngs/ --report downstream/
 """
-DEFAULT_ESTIMATORS = "cnn,moments"
+DEFAULT_ESTIMATORS = "cnn,histogram"
 
 
 def _parser() -> argparse.ArgumentParser:

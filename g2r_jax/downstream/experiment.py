@@ -174,7 +174,7 @@ class _Sets:
         raise ValueError(f"unknown row {row!r}; expected one of {', '.join(ROWS)}")
 
 
-def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROWS, estimators=("cnn", "moments"),
+def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROWS, estimators=("cnn", "histogram"),
                           seeds=(0, 1, 2), n: int = 1000, folds: int = 3, illuminant_model: str = "auto",
                           single_light: str = "auto", lights: Optional[int] = None, other: Optional[tuple] = None,
                           progress: Optional[Callable[[str], None]] = None) -> ExperimentResult:
