@@ -44,12 +44,12 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--burst", metavar="DNG_DIR",
                         help="also the denoising check: a folder of DNGs of one static scene (>= 3 frames)")
     parser.add_argument("--denoiser-steps", type=int, default=300, metavar="STEPS",
-                        help="Adam steps per denoiser training of the burst check (default 300)")
+                        help="Adam steps per denoiser training of the burst check")
     parser.add_argument("--estimators", default=DEFAULT_ESTIMATORS,
-                        help=f"comma-separated, of cnn, moments, histogram (default {DEFAULT_ESTIMATORS})")
-    parser.add_argument("--seeds", type=int, default=2, help="repetitions with new synthetic sets (default 2)")
-    parser.add_argument("--n", type=int, default=600, help="synthetic training images per set (default 600)")
-    parser.add_argument("--folds", type=int, default=3, help="cross-validation folds of the real files (default 3)")
+                        help="comma-separated, of cnn, moments, histogram")
+    parser.add_argument("--seeds", type=int, default=2, help="repetitions with new synthetic sets")
+    parser.add_argument("--n", type=int, default=600, help="synthetic training images per set")
+    parser.add_argument("--folds", type=int, default=3, help="cross-validation folds of the real files")
     add_common_flags(parser)
     return parser
 
