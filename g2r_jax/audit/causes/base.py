@@ -88,10 +88,16 @@ class Cause:
         """(n_files, k) statistic of each file."""
         return np.stack([np.asarray(f[self.key], np.float64) for f in files])
 
+    def vector_pair(self, measured: list, simulated: list, profile):
+        """(measured (n, k), simulated (m, k)) statistics of both sets. A cause whose per-file
+        statistic is centred on a reference drawn from both sets pooled (label-free, so the
+        permutation test stays exact) overrides this; the default is `vectors` of each set."""
+        return self.vectors(measured, profile), self.vectors(simulated, profile)
+
     def mean_difference(self, measured, simulated, profile) -> np.ndarray:
         """measured - simulated mean of the statistic (NaN components -> 0)."""
-        return np.nan_to_num(quiet_nanmean(self.vectors(measured, profile))
-                             - quiet_nanmean(self.vectors(simulated, profile)))
+        m, s = self.vector_pair(measured, simulated, profile)
+        return np.nan_to_num(quiet_nanmean(m) - quiet_nanmean(s))
 
     # -- how it is tested
     def test(self, measured, simulated, profile, *, n_permutations: int = 2000, seed: int = 0) -> dict:
@@ -107,7 +113,7 @@ class Cause:
             return self.prediction_test(measured, simulated, profile)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            m, s = self.vectors(measured, profile), self.vectors(simulated, profile)
+            m, s = self.vector_pair(measured, simulated, profile)
             test = significance.max_t_permutation(m, s, floor=self.floor, n_permutations=n_permutations,
                                                   seed=seed)
         finite = np.isfinite(test["difference"])
@@ -127,7 +133,7 @@ class Cause:
         one that describes the scene (brightness) varies a lot, so it has little, as it should."""
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            m, s = self.vectors(measured, profile), self.vectors(simulated, profile)
+            m, s = self.vector_pair(measured, simulated, profile)
             n_m, n_s = np.sum(np.isfinite(m), 0), np.sum(np.isfinite(s), 0)
             difference = np.nanmean(m, 0) - np.nanmean(s, 0)
             sd = np.nanstd(s, 0, ddof=1)
@@ -166,8 +172,8 @@ class Cause:
         """Plot data for the report: per component, measured against simulated files."""
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            m = self.user_units(self.vectors(measured, profile), measured)
-            s = self.user_units(self.vectors(simulated, profile), simulated)
+            m, s = self.vector_pair(measured, simulated, profile)
+            m, s = self.user_units(m, measured), self.user_units(s, simulated)
         return {"kind": "strip", "measured": np.asarray(m).tolist(), "simulated": np.asarray(s).tolist(),
                 "unit": self.unit, "labels": self.component_labels(np.shape(m)[1], profile),
                 "title": f"{self.name}: measured files against files simulated by the profile"}
