@@ -80,6 +80,7 @@ def test_check_runs_names_bad_files_and_writes_the_report(camera_folders, tmp_pa
     assert not list(report.glob("*.tmp"))
 
 
+@pytest.mark.slow
 def test_burst_check_adds_denoising_and_names_a_frame_it_cannot_use(camera_folders, tmp_path, capsys):
     from g2r_jax.downstream.bursts import write_synthetic_burst
 

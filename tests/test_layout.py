@@ -89,8 +89,15 @@ def test_profile_fitting_and_conversion_do_not_import_the_audit():
 
 
 def test_top_level_is_short():
+    """The camera's stages, the jobs around them (batch, audit, downstream), I/O and commands."""
     entries = [p.name for p in PACKAGE.iterdir() if p.name != "__pycache__"]
-    assert len(entries) <= 12, sorted(entries)
+    assert len(entries) <= 13, sorted(entries)
+
+
+def test_pipeline_and_profiles_do_not_import_the_downstream_tests():
+    graph = import_graph()
+    for start in ("g2r_jax.profile.fitting", "g2r_jax.batch.conversion", "g2r_jax.pipeline", "g2r_jax.audit"):
+        assert not {m for m in _reachable(graph, start) if m.startswith("g2r_jax.downstream")}, start
 
 
 def test_no_module_named_like_a_public_name_of_its_package():
