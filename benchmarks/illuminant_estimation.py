@@ -42,15 +42,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from g2r_jax.colour import charts as _charts  # noqa: E402
 from g2r_jax.colour import conversions as _colour  # noqa: E402
 from g2r_jax.colour import chart_fit as colour_fit  # noqa: E402
+from g2r_jax.downstream.upi import XYZ_TO_CAMERAS  # noqa: E402
 
 TRAIN_PER_FOLD = 2000
-# Brooks et al. 2019 (unprocess.py, random_ccm): XYZ -> camera matrices of four cameras.
-UPI_XYZ_TO_CAMS = np.array([
-    [[1.0234, -0.2969, -0.2266], [-0.5625, 1.6328, -0.0469], [-0.0703, 0.2188, 0.6406]],
-    [[0.4913, -0.0541, -0.0202], [-0.613, 1.3513, 0.2906], [-0.1564, 0.2151, 0.7183]],
-    [[0.838, -0.263, -0.0639], [-0.2887, 1.0725, 0.2496], [-0.0627, 0.1427, 0.5438]],
-    [[0.6596, -0.2079, -0.0562], [-0.4782, 1.3016, 0.1933], [-0.097, 0.1581, 0.5181]],
-])
 ROWS = ("UPI (Brooks et al. 2019)", "published recipe", "g2r_jax as shipped", "g2r_jax after colour refit", "Real")
 
 
@@ -87,7 +81,7 @@ def upi_charts(chart_linear, n, rng):
     """UPI training charts: (patches (n, 24, 3), illuminants (n, 3))."""
     weights = rng.uniform(1e-8, 1.0, (n, 4))
     weights /= weights.sum(1, keepdims=True)
-    xyz_to_cam = np.einsum("nk,kij->nij", weights, UPI_XYZ_TO_CAMS)
+    xyz_to_cam = np.einsum("nk,kij->nij", weights, XYZ_TO_CAMERAS)
     rgb_to_cam = xyz_to_cam @ np.asarray(_colour.MATRIX_SRGB_TO_XYZ)
     rgb_to_cam /= rgb_to_cam.sum(-1, keepdims=True)
     red, blue = rng.uniform(1.9, 2.4, n), rng.uniform(1.5, 1.9, n)

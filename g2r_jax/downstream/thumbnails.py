@@ -53,6 +53,16 @@ def mosaic_thumbnails(mosaics, cfa_pattern, black_level, white_level):
     return _unit_max(_reduce(rgb, SIZE))
 
 
+def area_average(image: np.ndarray, size: int) -> np.ndarray:
+    """(h, w, c) -> (size, size, c): the mean over a size x size grid of blocks whose edges are
+    rounded to whole pixels (numpy, any h, w >= size)."""
+    h, w, _ = image.shape
+    rows = np.linspace(0, h, size + 1).round().astype(int)
+    cols = np.linspace(0, w, size + 1).round().astype(int)
+    sums = np.add.reduceat(np.add.reduceat(image, rows[:-1], axis=0), cols[:-1], axis=1)
+    return (sums / np.outer(np.diff(rows), np.diff(cols))[..., None]).astype(np.float32)
+
+
 def camera_rgb_thumbnail(rgb: np.ndarray) -> np.ndarray:
     """One (h, w, 3) camera-RGB image in [0, 1] of the range, any size >= 64 x 64 -> (64, 64, 3).
 
@@ -63,13 +73,9 @@ def camera_rgb_thumbnail(rgb: np.ndarray) -> np.ndarray:
     h, w, _ = rgb.shape
     if h < SIZE or w < SIZE:
         raise ValueError(f"image of {h} x {w} is smaller than the {SIZE} x {SIZE} thumbnail")
-    rows = np.linspace(0, h, SIZE + 1).round().astype(int)[:-1]
-    cols = np.linspace(0, w, SIZE + 1).round().astype(int)[:-1]
-    sums = np.add.reduceat(np.add.reduceat(rgb, rows, axis=0), cols, axis=1)
-    counts = np.outer(np.diff(np.r_[rows, h]), np.diff(np.r_[cols, w]))[..., None]
-    saturated = (rgb >= SATURATED).any(-1).astype(np.int32)
-    clipped = np.add.reduceat(np.add.reduceat(saturated, rows, axis=0), cols, axis=1) > 0
-    thumb = np.where(clipped[..., None], 0.0, sums / counts).astype(np.float32)
+    mean = area_average(rgb, SIZE)
+    clipped = area_average((rgb >= SATURATED).any(-1, keepdims=True).astype(np.float32), SIZE)[..., 0] > 0
+    thumb = np.where(clipped[..., None], 0.0, mean).astype(np.float32)
     peak = thumb.max()
     return thumb / peak if peak > 0 else thumb
 

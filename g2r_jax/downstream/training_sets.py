@@ -40,14 +40,6 @@ def linear_images(images) -> list[np.ndarray]:
     return out
 
 
-def _area_resize(image: np.ndarray, size: int) -> np.ndarray:
-    h, w, _ = image.shape
-    rows = np.linspace(0, h, size + 1).round().astype(int)
-    cols = np.linspace(0, w, size + 1).round().astype(int)
-    sums = np.add.reduceat(np.add.reduceat(image, rows[:-1], axis=0), cols[:-1], axis=1)
-    return (sums / np.outer(np.diff(rows), np.diff(cols))[..., None]).astype(np.float32)
-
-
 def cg_views(linear: list[np.ndarray], n: int, seed: int, *, size: int = VIEW_SIZE,
              scale=VIEW_SCALE) -> np.ndarray:
     """`n` random square views (n, size, size, 3) of linear images: an image drawn at random, a
@@ -62,7 +54,7 @@ def cg_views(linear: list[np.ndarray], n: int, seed: int, *, size: int = VIEW_SI
             raise ValueError(f"a CG image of {h} x {w} is smaller than the {size} x {size} view")
         side = max(size, int(round(rng.uniform(*scale) * min(h, w))))
         y, x = rng.integers(0, h - side + 1), rng.integers(0, w - side + 1)
-        view = _area_resize(image[y:y + side, x:x + side], size)
+        view = _thumbnails.area_average(image[y:y + side, x:x + side], size)
         out[i] = view[:, ::-1] if rng.random() < 0.5 else view
     return out
 
