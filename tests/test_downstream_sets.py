@@ -123,8 +123,31 @@ def test_content_statistics_name_what_differs():
     rows = {r["statistic"]: r for r in content.compare((grey, lights), (vivid, lights), (vivid, lights))}
     assert rows["chroma_spread"]["distance"] < -3
     assert rows["brightness"]["distance"] < -3
-    assert abs(rows["zeroed_share"]["distance"]) < 1
+    assert not rows["zeroed_share"]["spread"] and np.isnan(rows["zeroed_share"]["distance"])   # 0 everywhere
     assert rows["chroma_spread"]["control_distance"] == 0 and rows["chroma_spread"]["excess"] > 3
+
+
+def test_content_statistics_without_spread_are_reported_as_such_not_as_distances():
+    """Issue 34: a real set with no dark pixels anywhere, or whose saturated pixels all read 0 in
+    the same share, gave distances of thousands of robust sd. Now every distance is floored at the
+    statistic's resolution, a statistic without spread gives no distance, and none exceeds 100."""
+    from g2r_jax.downstream import report
+
+    lights = np.tile([[0.5, 1, 0.7]], (30, 1))
+    real = textures(30, seed=3) * lights[:, None, None, :]
+    real = real / real.reshape(30, -1).max(1)[:, None, None, None]
+    real[:, :20, :17] = 0.0                                    # the same clipped-as-zero share in every file
+    synthetic = textures(30, seed=4) * lights[:, None, None, :]
+    synthetic[:, 40:, :, :] *= 0.01                            # a dark share the real files never have
+    rows = {r["statistic"]: r for r in content.compare((synthetic, lights), (real, lights))}
+    for name in ("dark_share", "zeroed_share"):
+        assert not rows[name]["spread"] and np.isnan(rows[name]["distance"]) and np.isnan(rows[name]["excess"])
+    assert rows["dark_share"]["synthetic"] > 0.3 and rows["dark_share"]["real"] == 0
+    finite = [abs(r["distance"]) for r in rows.values() if r["spread"]]
+    assert finite and max(finite) < 100
+    assert "no spread in the real files" in report.content_table(list(rows.values()))
+    assert content.resolution("dark_share", 4096, 0.0) == 1 / 4096
+    assert content.resolution("zeroed_share", 4096, 0.085) == pytest.approx(np.sqrt(0.085 * 0.915 / 4096))
 
 
 def test_dng_folder_is_read_with_as_shot_labels_and_bad_files_named(tmp_path):

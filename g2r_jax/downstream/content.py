@@ -14,13 +14,19 @@ Statistics (each per image; thumbnails are linear camera RGB scaled to a maximum
 - `grey_world_bias`: angle (degrees) between the image's mean colour and its light: how far its
   average surface is from grey (the cue grey-world estimators rely on: Buchsbaum 1980).
 The distance between the sets is the difference of medians in units of the real set's robust
-standard deviation (1.4826 x MAD, floored), with its sign: positive when the synthetic set's
-value is higher.
+standard deviation (`g2r_jax.measure.robust_sd`: 1.4826 x MAD), with its sign: positive when the
+synthetic set's value is higher. The spread is floored at the statistic's resolution
+(`resolution`), the smallest difference it can show; a real set whose spread is at or below
+that floor (every file reads the same share, e.g. no dark pixels anywhere) has no spread to
+measure a distance in: the statistic is reported as such (`spread` False, distance NaN), never
+as thousands of standard deviations.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from g2r_jax.measure import robust_sd
 
 STATISTICS = {
     "brightness": "mean brightness (relative to the brightest pixel)",
@@ -68,11 +74,23 @@ def image_statistics(images: np.ndarray, illuminants: np.ndarray) -> dict:
     return out
 
 
-def _robust_std(values: np.ndarray) -> float:
-    values = values[np.isfinite(values)]
-    if len(values) < 2:
-        return float("nan")
-    return max(1.4826 * float(np.median(np.abs(values - np.median(values)))), 1e-3 * (abs(np.median(values)) + 1e-3))
+def resolution(statistic: str, pixels: int, share: float = 0.0) -> float:
+    """The smallest difference `statistic` can show between two images of `pixels` pixels.
+
+    - shares (`dark_share`, `zeroed_share`): the standard error of a binomial proportion,
+      sqrt(p (1 - p) / N) at the share p (Cochran, *Sampling Techniques*, 3rd ed. 1977, eq. 3.6),
+      and never below 1/N, one pixel's worth;
+    - `brightness`, a mean of N values in [0, 1]: one pixel changing across the range, 1/N;
+    - `contrast` (log2 of a ratio): 0.01, a ratio of 0.7 %;
+    - `chroma_spread` (natural-log chroma): 0.001, 0.1 % in a chroma ratio;
+    - `grey_world_bias`: 0.01 degree (estimators err in whole degrees).
+    The last three are chosen below any difference an estimator can feel.
+    """
+    n = max(int(pixels), 1)
+    if statistic in ("dark_share", "zeroed_share"):
+        p = min(max(float(share), 0.0), 1.0)
+        return max(float(np.sqrt(p * (1.0 - p) / n)), 1.0 / n)
+    return {"brightness": 1.0 / n, "contrast": 0.01, "chroma_spread": 1e-3, "grey_world_bias": 0.01}[statistic]
 
 
 def compare(synthetic: tuple, real: tuple, control: tuple | None = None) -> list[dict]:
@@ -83,22 +101,28 @@ def compare(synthetic: tuple, real: tuple, control: tuple | None = None) -> list
     simulation alone moves a statistic: a CG statistic matters by how far it lies beyond it.
     **Returns:** one dict per statistic, largest excess first: statistic, description, medians
     (synthetic, real, control), distance and control_distance (in the real set's robust standard
-    deviations, signed), excess = |distance| - |control_distance|.
+    deviations, signed), excess = |distance| - |control_distance|; real_spread, resolution, and
+    `spread` (False when the real files' spread is no larger than the statistic's resolution:
+    distance, control_distance and excess are then NaN, and the row sorts last).
     """
     sets = {"synthetic": image_statistics(*synthetic), "real": image_statistics(*real)}
     if control is not None:
         sets["control"] = image_statistics(*control)
+    pixels = int(np.prod(np.shape(real[0])[1:3]))
     rows = []
     for name, description in STATISTICS.items():
         values = {k: v[name][np.isfinite(v[name])] for k, v in sets.items()}
         if any(not len(v) for v in values.values()):
             continue
-        scale = _robust_std(values["real"])
         medians = {k: float(np.median(v)) for k, v in values.items()}
-        distance = {k: (medians[k] - medians["real"]) / scale for k in medians}
-        row = {"statistic": name, "description": description, **medians, "distance": float(distance["synthetic"])}
+        floor = resolution(name, pixels, max(medians["real"], medians["synthetic"]))
+        spread = robust_sd(values["real"], resolution=floor)
+        has_spread = bool(np.isfinite(spread) and spread > floor)
+        distance = {k: (medians[k] - medians["real"]) / spread if has_spread else float("nan") for k in medians}
+        row = {"statistic": name, "description": description, **medians, "real_spread": float(spread),
+               "resolution": floor, "spread": has_spread, "distance": float(distance["synthetic"])}
         if control is not None:
             row["control_distance"] = float(distance["control"])
-        row["excess"] = abs(row["distance"]) - abs(row.get("control_distance", 0.0))
+        row["excess"] = (abs(row["distance"]) - abs(row.get("control_distance", 0.0))) if has_spread else float("nan")
         rows.append(row)
-    return sorted(rows, key=lambda r: -r["excess"] if np.isfinite(r["excess"]) else 0.0)
+    return sorted(rows, key=lambda r: -r["excess"] if np.isfinite(r["excess"]) else np.inf)

@@ -64,22 +64,26 @@ def sentence(result: ExperimentResult, estimator: str, content_rows=None) -> str
     if split["gap"] is not None and split["profile"] is not None:
         parts.append(f"of the {split['gap']:.2f} deg gap to real training, {split['profile']:.2f} is the profile "
                      f"(colour and lights) and {split['content']:.2f} the CG content")
-        if content_rows and split["content"] > max(split["profile"], 0.0) and content_rows[0]["excess"] > 1:
-            top = content_rows[0]
+        measured = [r for r in content_rows or () if r.get("spread", True) and np.isfinite(r["excess"])]
+        if measured and split["content"] > max(split["profile"], 0.0) and measured[0]["excess"] > 1:
+            top = measured[0]
             parts.append(f"the CG content differs most from the real files in {top['description']}: "
                          f"{top['synthetic']:.3g} against {top['real']:.3g} ({top['distance']:+.1f} robust std)")
     return "; ".join(parts) + "."
 
 
 def content_table(rows) -> str:
-    """Markdown table of `content.compare`: medians and distances in the real set's robust std."""
+    """Markdown table of `content.compare`: medians and distances in the real set's robust std; a
+    statistic without spread in the real files says so instead of a distance."""
     control = rows and "control" in rows[0]
     head = "| statistic | CG set | real files | distance |" + (" real files made RAW again | its distance |" if control else "")
     lines = [head, "|---|---|---|---|" + ("---|---|" if control else "")]
     for r in rows:
-        line = f"| {r['description']} | {r['synthetic']:.3g} | {r['real']:.3g} | {r['distance']:+.1f} |"
+        measured = r.get("spread", True)
+        distance = f"{r['distance']:+.1f}" if measured else "no spread in the real files"
+        line = f"| {r['description']} | {r['synthetic']:.3g} | {r['real']:.3g} | {distance} |"
         if control:
-            line += f" {r['control']:.3g} | {r['control_distance']:+.1f} |"
+            line += f" {r['control']:.3g} | {r['control_distance']:+.1f} |" if measured else f" {r['control']:.3g} | - |"
         lines.append(line)
     return "\n".join(lines)
 
