@@ -132,55 +132,138 @@ def _with_sensitivities(profile, path, camera, chromaticities, infos):
     return attach_spectral(profile, sensitivities.values, source=sensitivities.source, chromaticities=chromaticities)
 
 
-def body(args) -> int:
-    import numpy as np
-
-    from g2r_jax.profile.fitting import check_file_colour, fit_profile, levels_from_infos
-    from g2r_jax.illuminants.distributions import neutral_to_chromaticity
+def _read_folder_infos(args, failures):
+    """The checked tags of every DNG under `args.dng_dirs` (one camera's, `_one_camera`); each
+    unreadable folder or file becomes a line of `failures`."""
     from g2r_jax.io.dng_read import read_dng_info, require_bayer_cfa, require_colour_tags
     from g2r_jax.io.images import list_inputs
-    from g2r_jax.profile.schema import save_profile
-    from g2r_jax.cli.convert import read_illuminant_csv
+    from g2r_jax.profile.fitting import check_file_colour
 
-    failures = []
-    infos = []
+    paths, infos = [], []
+    for item in args.dng_dirs:
+        try:
+            paths += list_inputs([item], (".dng",))
+        except Exception as error:  # noqa: BLE001
+            failures.append(str(error))
+    for path in paths:
+        try:   # every check of one file's tags happens here, before any folder-wide solver
+            info = check_file_colour(require_bayer_cfa(require_colour_tags(read_dng_info(path))))
+            for warning in info.warnings:
+                print(f"g2r-fit-profile: warning: {one_line(f'{shown(path)}: {warning}')}", file=sys.stderr)
+            infos.append(info)
+        except Exception as error:  # noqa: BLE001 - report and go on
+            failures.append(error_message(error) if str(path) in str(error) else
+                            one_line(f"{path}: {error_message(error)}"))
+    return _one_camera(infos, failures, getattr(args, "quiet", False))
+
+
+def _gather_inputs(args, failures):
+    """(infos, chromaticities, source): the files' tags, the measured illuminants' chromaticities
+    (None when the as-shot neutrals of the DNGs stand for them) and the provenance line."""
+    from g2r_jax.cli.convert import read_illuminant_csv
+    from g2r_jax.illuminants.distributions import neutral_to_chromaticity
+
     if args.illuminants:
         if not args.calibration:
             raise ValueError("--illuminants needs --calibration DNG (or profile JSON) for the camera's matrices")
         infos = _calibration_infos(args.calibration)
         chromaticities = neutral_to_chromaticity(read_illuminant_csv(args.illuminants))
-        source = f"illuminants from {args.illuminants.name}, colour tags from {args.calibration.name}"
-    else:
-        if not args.dng_dirs:
-            raise ValueError("give DNG folders, or --illuminants CSV --calibration DNG")
-        paths = []
-        for item in args.dng_dirs:
-            try:
-                paths += list_inputs([item], (".dng",))
-            except Exception as error:  # noqa: BLE001
-                failures.append(str(error))
-        for path in paths:
-            try:   # every check of one file's tags happens here, before any folder-wide solver
-                info = check_file_colour(require_bayer_cfa(require_colour_tags(read_dng_info(path))))
-                for warning in info.warnings:
-                    print(f"g2r-fit-profile: warning: {one_line(f'{shown(path)}: {warning}')}", file=sys.stderr)
-                infos.append(info)
-            except Exception as error:  # noqa: BLE001 - report and go on
-                failures.append(error_message(error) if str(path) in str(error) else
-                                one_line(f"{path}: {error_message(error)}"))
-        infos = _one_camera(infos, failures, getattr(args, "quiet", False))
-        chromaticities = None
-        source = f"{len(infos)} DNG file(s) from {', '.join(str(d) for d in args.dng_dirs)}"
+        return infos, chromaticities, f"illuminants from {args.illuminants.name}, colour tags from {args.calibration.name}"
+    if not args.dng_dirs:
+        raise ValueError("give DNG folders, or --illuminants CSV --calibration DNG")
+    infos = _read_folder_infos(args, failures)
+    return infos, None, f"{len(infos)} DNG file(s) from {', '.join(str(d) for d in args.dng_dirs)}"
+
+
+def _report_dropped(info, error, failures) -> None:
+    line = one_line(f"{info.path}: dropped, no valid profile with this file ({error_message(error)})")
+    failures.append(line)
+    print(f"g2r-fit-profile: error: {line}", file=sys.stderr)
+
+
+def _fit_without_one(attempt, infos, failures, error):
+    """(profile, infos) after dropping the one file whose absence alone gives a valid profile (the
+    colour-tag outlier when several would); (None, infos) when no single file does."""
+    fits = {}
+    for k in range(len(infos)):
+        try:
+            fits[k] = attempt(infos[:k] + infos[k + 1:], None)
+        except Exception:  # noqa: BLE001
+            pass
+    if len(fits) > 1:   # several files can each be dropped: drop the one whose colour tags disagree
+        outlier = colour_outlier(infos, list(fits))
+        fits = {outlier: fits[outlier]} if outlier is not None else fits
+    if len(fits) != 1:
+        return None, infos
+    (k, profile), = fits.items()
+    _report_dropped(infos[k], error, failures)
+    return profile, infos[:k] + infos[k + 1:]
+
+
+def _fit_survivors(attempt, infos, failures, first_error):
+    """(profile, infos) from the files that give a valid profile on their own (several bad files)."""
+    survivors = []
+    for info in infos:
+        try:
+            attempt([info], None)
+            survivors.append(info)
+        except Exception as single:  # noqa: BLE001
+            _report_dropped(info, single, failures)
+    if not survivors or len(survivors) == len(infos):
+        raise ValueError(f"no valid profile from {len(infos)} file(s): {error_message(first_error)}")
+    return attempt(survivors, None), survivors
+
+
+def _fit_dropping_bad_files(attempt, infos, chromaticities, failures):
+    """(profile, infos): the fit of all files, or when it fails, of the files left after dropping
+    those that break it (one file, else every file that fails on its own)."""
+    try:
+        return attempt(infos, chromaticities), infos
+    except Exception as error:  # noqa: BLE001 - find the files that break the fit, drop them, refit
+        if chromaticities is not None or len(infos) < 2:
+            raise ValueError(f"no valid profile from {len(infos)} file(s): {error_message(error)}") from error
+        first_error = error
+    profile, infos = _fit_without_one(attempt, infos, failures, first_error)
+    if profile is None:
+        profile, infos = _fit_survivors(attempt, infos, failures, first_error)
+    return profile, infos
+
+
+def _noise_from_table(args, infos):
+    import numpy as np
+
+    if not args.noise_table:
+        return None
+    return read_noise_table(args.noise_table, np.resize(np.asarray(infos[0].black_level, float), 4),
+                            infos[0].white_level)
+
+
+def _write_profile(profile, args, infos, failures) -> None:
+    from g2r_jax.profile.schema import save_profile
+
+    removed = remove_stale_temporaries(args.output)
+    if removed:
+        print(f"g2r-fit-profile: note: removed {removed} temporary file(s) of {shown(args.output.name)} left by an "
+              "earlier run that was stopped", file=sys.stderr)
+    save_profile(profile, args.output)
+    print(f"g2r-fit-profile: wrote {args.output} ({profile.illuminants.kind} illuminant model, "
+          f"{len(infos)} file(s); {len(failures)} failed)")
+    if not args.quiet:
+        print(f"g2r-fit-profile: illuminant model: {one_line(illuminant_reason(profile))}")
+
+
+def body(args) -> int:
+    from g2r_jax.profile.fitting import fit_profile, levels_from_infos
+
+    failures = []
+    infos, chromaticities, source = _gather_inputs(args, failures)
     for line in failures:
         print(f"g2r-fit-profile: error: {one_line(line)}", file=sys.stderr)
     if not infos:
         raise ValueError("no usable DNG files; nothing to fit")
-    noise = None
-    if args.noise_table:
-        noise = read_noise_table(args.noise_table, np.resize(np.asarray(infos[0].black_level, float), 4),
-                                 infos[0].white_level)
+    noise = _noise_from_table(args, infos)
+    if noise is not None:
         source += f"; noise from {args.noise_table.name}"
-
     dark_frame_notes = []   # the last fit's lines on dark frames (`fit_profile(notes=...)`)
 
     def attempt(subset, chromaticities_subset):
@@ -193,42 +276,7 @@ def body(args) -> int:
         dark_frame_notes[:] = notes
         return fitted
 
-    profile, first_error = None, None
-    try:
-        profile = attempt(infos, chromaticities)
-    except Exception as error:  # noqa: BLE001 - find the files that break the fit, drop them, refit
-        first_error = error
-        if chromaticities is not None or len(infos) < 2:
-            raise ValueError(f"no valid profile from {len(infos)} file(s): {error_message(error)}") from error
-        fits = {}
-        for k in range(len(infos)):   # the one file whose absence (alone) gives a valid profile
-            try:
-                fits[k] = attempt(infos[:k] + infos[k + 1:], None)
-            except Exception:  # noqa: BLE001
-                pass
-        if len(fits) > 1:   # several files can each be dropped: drop the one whose colour tags disagree
-            outlier = colour_outlier(infos, list(fits))
-            fits = {outlier: fits[outlier]} if outlier is not None else fits
-        if len(fits) == 1:
-            (k, profile), = fits.items()
-            line = one_line(f"{infos[k].path}: dropped, no valid profile with this file ({error_message(error)})")
-            failures.append(line)
-            print(f"g2r-fit-profile: error: {line}", file=sys.stderr)
-            infos = infos[:k] + infos[k + 1:]
-    if profile is None:   # several bad files: keep those that give a valid profile on their own
-        survivors = []
-        for info in infos:
-            try:
-                attempt([info], None)
-                survivors.append(info)
-            except Exception as single:  # noqa: BLE001
-                line = one_line(f"{info.path}: dropped, no valid profile with this file ({error_message(single)})")
-                failures.append(line)
-                print(f"g2r-fit-profile: error: {line}", file=sys.stderr)
-        if not survivors or len(survivors) == len(infos):
-            raise ValueError(f"no valid profile from {len(infos)} file(s): {error_message(first_error)}")
-        infos = survivors
-        profile = attempt(infos, None)
+    profile, infos = _fit_dropping_bad_files(attempt, infos, chromaticities, failures)
     if chromaticities is None:
         note = levels_from_infos(infos)[2]
         if note and not args.quiet:
@@ -237,15 +285,7 @@ def body(args) -> int:
         print(f"g2r-fit-profile: note: {one_line(line)}", file=sys.stderr)
     if args.sensitivities:
         profile = _with_sensitivities(profile, args.sensitivities, args.sensitivities_camera, chromaticities, infos)
-    removed = remove_stale_temporaries(args.output)
-    if removed:
-        print(f"g2r-fit-profile: note: removed {removed} temporary file(s) of {shown(args.output.name)} left by an "
-              "earlier run that was stopped", file=sys.stderr)
-    save_profile(profile, args.output)
-    print(f"g2r-fit-profile: wrote {args.output} ({profile.illuminants.kind} illuminant model, "
-          f"{len(infos)} file(s); {len(failures)} failed)")
-    if not args.quiet:
-        print(f"g2r-fit-profile: illuminant model: {one_line(illuminant_reason(profile))}")
+    _write_profile(profile, args, infos, failures)
     return 1 if failures else 0
 
 
