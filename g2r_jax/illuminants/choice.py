@@ -59,41 +59,69 @@ def camera_locus_tangents(points, colour_model) -> np.ndarray:
 
 
 def _best_prior_preset(points, colour_model, dtype):
-    """(preset, camera model) of the prior preset under which the lights are most likely, the day
-    preset unless another one's log likelihood of all the lights is `PRESET_EVIDENCE` nats higher
-    (without that margin one or two lights picked the night preset for a daylight camera)."""
-    from g2r_jax.illuminants.prior import DEFAULT_PRESET, model_for_camera
+    """(preset, `prior.CameraPrior`) of the prior preset under which the lights are most likely,
+    the day preset unless another one's log likelihood of all the lights is `PRESET_EVIDENCE` nats
+    higher (without that margin one or two lights picked the night preset for a daylight camera);
+    the day preset for no lights. A preset this camera's matrices cannot carry (`prior.camera_prior`
+    refuses it) is not a candidate; ValueError only when none is."""
+    from g2r_jax.illuminants.prior import DEFAULT_PRESET, camera_prior
 
-    best = None
+    best, refusals = None, []
     for preset in dict.fromkeys([DEFAULT_PRESET, *PRIOR_KINDS.values()]):
-        with warnings.catch_warnings(record=True) as caught:   # only the chosen preset's warnings matter
-            warnings.simplefilter("always")
-            model = model_for_camera(colour_model, preset, dtype=dtype)
-        score = float(np.sum(_distributions.mixture_log_likelihood(model, points)))
+        try:
+            mapped = camera_prior(colour_model, preset, dtype=dtype)
+        except ValueError as error:
+            refusals.append(str(error))
+            continue
+        score = float(np.sum(_distributions.mixture_log_likelihood(mapped.model, points))) if len(points) else 0.0
         if best is None or score > best[0] + PRESET_EVIDENCE:
-            best = (score, preset, model, caught)
-    for record in best[3]:
-        warnings.warn_explicit(record.message, record.category, record.filename, record.lineno)
+            best = (score, preset, mapped)
+    if best is None:
+        raise ValueError("; ".join(refusals))
     return best[1], best[2]
+
+
+def _prior_words(preset: str, mapped) -> str:
+    from g2r_jax.illuminants.prior import left_out_words
+
+    left_out = left_out_words(mapped.left_out, preset)
+    return f"{preset} preset" + (f"; {left_out}" if left_out else "")
 
 
 def _count(n: int) -> str:
     return f"{n} measured light{'' if n == 1 else 's'}"
 
 
+def _prior_choice(points, colour_model, kind, why, auto, dtype) -> IlluminantChoice:
+    """The cross-camera prior: the preset `kind` names, or for 'auto' the one the lights favour
+    (`_best_prior_preset`: day unless the lights are strongly more likely under another)."""
+    from g2r_jax.illuminants.prior import camera_prior
+
+    if auto:
+        preset, mapped = _best_prior_preset(points, colour_model, dtype)
+        chosen = f"{_prior_words(preset, mapped)}, " + ("the lights most likely under it" if len(points)
+                                                         else "the default without lights")
+    else:
+        preset = PRIOR_KINDS[kind]
+        mapped = camera_prior(colour_model, preset, dtype=dtype)
+        chosen = _prior_words(preset, mapped)
+    return IlluminantChoice(mapped.model, f"{why}: the cross-camera prior of measured scene lights ({chosen}), "
+                                          "no measured light used", len(points))
+
+
 def fit_kernel_for_camera(points, colour_model, dtype=np.float32) -> tuple:
     """(model, words) of the kernel model (`kernel.fit_kernel`) of `points` in this camera,
     blended with the prior preset most likely for them."""
     tangents = camera_locus_tangents(points, colour_model)
-    preset, prior = _best_prior_preset(points, colour_model, dtype)
+    preset, mapped = _best_prior_preset(points, colour_model, dtype)
     along, across = _kernel.choose_bandwidths(points, tangents)
-    model = _kernel.fit_kernel(points, tangents, prior=prior, bandwidths=(along, across), dtype=dtype)
+    model = _kernel.fit_kernel(points, tangents, prior=mapped.model, bandwidths=(along, across), dtype=dtype)
     share = _kernel.PRIOR_PSEUDO_LIGHTS / (len(points) + _kernel.PRIOR_PSEUDO_LIGHTS)
     how = ("leave-one-out likelihood" if len(points) >= _kernel.MIN_LIGHTS_FOR_CV
            else f"fixed: fewer than {_kernel.MIN_LIGHTS_FOR_CV} lights")
     words = (f"kernel density of the {_count(len(points))} along the camera's Planckian locus "
              f"(bandwidths {along:.3g} along, {across:.3g} across, {how}) with {share:.0%} of the "
-             f"cross-camera prior ({preset} preset)")
+             f"cross-camera prior ({_prior_words(preset, mapped)})")
     return model, words
 
 
@@ -107,8 +135,10 @@ def choose_illuminant_model(chromaticities, colour_model, kind: str = "auto", se
     the lights' convex hull), 'mixture' (BIC-selected Gaussians and the hull), 'locus' (the
     calibration matrices' CCT locus, supplement S3), 'prior', 'prior-night', 'prior-day-night'
     (`illuminants.prior` with that preset) or 'auto': the kernel model from `MIN_LIGHTS_FOR_KERNEL`
-    distinct lights, else the prior's day preset (chosen by the downstream measurement of
-    `MEASUREMENT`); `seed`: the mixture's EM initialisation.
+    distinct lights, else the prior (chosen by the downstream measurement of `MEASUREMENT`) with
+    the preset the lights favour (`_best_prior_preset`: day without lights); `seed`: the mixture's
+    EM initialisation. Prior lights the camera's matrices cannot carry are left out and counted
+    in the reason (`prior.camera_prior`).
 
     **Returns:** an `IlluminantChoice`. Raises ValueError for an unknown kind, or for 'gaussian' or
     'mixture' without 3 distinct, non-collinear lights.
@@ -118,7 +148,8 @@ def choose_illuminant_model(chromaticities, colour_model, kind: str = "auto", se
     points = distinct_lights(chromaticities)
     n = len(points)
     lights = _count(n)
-    if kind == "auto":
+    auto = kind == "auto"
+    if auto:
         if n >= MIN_LIGHTS_FOR_KERNEL:
             model, words = fit_kernel_for_camera(points, colour_model, dtype)
             return IlluminantChoice(model, f"kernel (auto, {lights} >= {MIN_LIGHTS_FOR_KERNEL}, by the "
@@ -131,11 +162,7 @@ def choose_illuminant_model(chromaticities, colour_model, kind: str = "auto", se
         return IlluminantChoice(_distributions.fit_locus(colour_model, dtype=dtype),
                                 f"{why}: the calibration matrices' A-D65 CCT locus, no measured light used", n)
     if kind in PRIOR_KINDS:
-        from g2r_jax.illuminants.prior import model_for_camera
-
-        return IlluminantChoice(model_for_camera(colour_model, PRIOR_KINDS[kind], dtype=dtype),
-                                f"{why}: the cross-camera prior of measured scene lights "
-                                f"({PRIOR_KINDS[kind]} preset), no measured light used", n)
+        return _prior_choice(points, colour_model, kind, why, auto, dtype)
     if kind == "kernel":
         if n == 0:
             raise ValueError("the kernel illuminant model needs at least one measured illuminant "

@@ -28,6 +28,7 @@ import json
 import warnings
 from dataclasses import dataclass
 from importlib import resources
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
@@ -45,7 +46,7 @@ DEFAULT_PRESET = "day"
 DUV_LIMIT = 0.03          # support of the prior in Duv (all real lights of the measured sets: |Duv| < 0.021)
 SPLIT = 9                 # sub-components per component along its major axis
 _MIN_CHROMATICITY = 1e-3  # r/g and b/g of a sampled neutral stay above this
-MAX_UNREPRESENTABLE = 0.05  # share of the prior a camera's matrices may fail to map before it is refused
+MAX_UNREPRESENTABLE = 0.5   # share of the prior a camera's matrices may fail to map before they are refused
 
 
 @dataclass(frozen=True)
@@ -189,19 +190,26 @@ def _support_outline(count: int = 64) -> np.ndarray:
                            np.stack([mired, duv_ceiling(mired)], -1)])
 
 
-def model_for_camera(colour_model, preset: str = DEFAULT_PRESET, prior: IlluminantPrior | None = None,
-                     dtype=np.float32) -> _distributions.IlluminantModel:
-    """The prior in one camera's (r/g, b/g): an `IlluminantModel` of kind 'prior'.
+class CameraPrior(NamedTuple):
+    """The prior mapped into one camera (`camera_prior`) and the share of its weight (0-1) left out
+    because the camera's colour matrices give those lights a non-positive or non-finite neutral."""
 
-    **Arguments:** `colour_model`: the camera's `DngColourModel`; `preset`: which weighting of
-    the populations (`day`, `night`, `day_night`); `prior`: an `IlluminantPrior` (default: the
-    shipped one); `dtype` of the returned model.
+    model: _distributions.IlluminantModel
+    left_out: float
 
-    **Returns:** the mixture mapped as the module docstring says. Sub-components whose white the
-    camera's matrices turn into a non-positive or non-finite neutral (a one-matrix D65 model
-    extrapolated to 1600 K can give negative blue) are left out with a warning, or, when they
-    carry more than `MAX_UNREPRESENTABLE` of the weight, ValueError.
-    """
+
+def left_out_words(left_out: float, preset: str) -> str:
+    """One clause counting the prior's lights a camera's matrices cannot carry ("" for none)."""
+    if left_out <= 0:
+        return ""
+    return (f"{left_out:.1%} of the prior's {preset!r} lights (the warmest) left out: this camera's colour "
+            "matrices give them a non-positive or non-finite neutral")
+
+
+def camera_prior(colour_model, preset: str = DEFAULT_PRESET, prior: IlluminantPrior | None = None,
+                 dtype=np.float32) -> CameraPrior:
+    """The prior in one camera's (r/g, b/g), as `model_for_camera`, without a warning: the share
+    of the prior left out comes back in the `CameraPrior` (ValueError above `MAX_UNREPRESENTABLE`)."""
     prior = load_prior() if prior is None else prior
     weights, means, covariances = _split_along_major_axis(*prior.mixture(preset))
     # one batch through the camera (one compilation): the centres, central differences for the
@@ -224,15 +232,32 @@ def model_for_camera(colour_model, preset: str = DEFAULT_PRESET, prior: Illumina
     lost = float(weights[~usable].sum())
     if lost > MAX_UNREPRESENTABLE:
         raise ValueError(f"the illuminant prior ({preset!r}) puts {lost:.1%} of its lights where this camera's "
-                         "colour matrices give a non-positive or non-finite neutral")
-    if lost > 0:
-        warnings.warn(f"illuminant prior ({preset!r}): {lost:.2%} of its lights (the warmest) have a non-positive "
-                      "camera neutral through this camera's colour matrices and are left out", stacklevel=2)
+                         "colour matrices give a non-positive or non-finite neutral: the matrices cannot carry it")
     weights, camera_means, camera_covariances = weights[usable], camera_means[usable], camera_covariances[usable]
     outline = outline[np.all(np.isfinite(outline), axis=1)]
     positive = np.array([[-1.0, 0.0, _MIN_CHROMATICITY], [0.0, -1.0, _MIN_CHROMATICITY]])
     hull = np.concatenate([_distributions.convex_hull_halfplanes(outline), positive])
-    return _distributions._model(weights, camera_means, camera_covariances, hull, "prior", True, dtype)
+    return CameraPrior(_distributions._model(weights, camera_means, camera_covariances, hull, "prior", True, dtype),
+                       lost)
+
+
+def model_for_camera(colour_model, preset: str = DEFAULT_PRESET, prior: IlluminantPrior | None = None,
+                     dtype=np.float32) -> _distributions.IlluminantModel:
+    """The prior in one camera's (r/g, b/g): an `IlluminantModel` of kind 'prior'.
+
+    **Arguments:** `colour_model`: the camera's `DngColourModel`; `preset`: which weighting of
+    the populations (`day`, `night`, `day_night`); `prior`: an `IlluminantPrior` (default: the
+    shipped one); `dtype` of the returned model.
+
+    **Returns:** the mixture mapped as the module docstring says. Sub-components whose white the
+    camera's matrices turn into a non-positive or non-finite neutral (a one-matrix D65 model
+    extrapolated to 1600 K can give negative blue) are left out with a warning that counts them,
+    or, when they carry more than `MAX_UNREPRESENTABLE` of the weight, ValueError.
+    """
+    mapped = camera_prior(colour_model, preset, prior, dtype)
+    if mapped.left_out > 0:
+        warnings.warn(f"illuminant prior: {left_out_words(mapped.left_out, preset)}", stacklevel=2)
+    return mapped.model
 
 
 def sample_neutrals_for(key, colour_model, n: int, preset: str = DEFAULT_PRESET,
