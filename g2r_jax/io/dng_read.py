@@ -27,6 +27,7 @@ import numpy as np
 
 from g2r_jax.io.dng_info import DngError, DngInfo
 from g2r_jax.io.illuminant_data import parse_illuminant_data
+from g2r_jax.io.pixel_layout import bits_problem, decoded_problem, layout_problem
 from g2r_jax.io.raw_compression import undecodable_reason
 from g2r_jax.io.tag_checks import check_dng_tags
 
@@ -100,7 +101,6 @@ TAGS = {
 PHOTOMETRIC_CFA = 32803
 PHOTOMETRIC_LINEAR_RAW = 34892
 _RATIONAL_TYPES = (5, 10)          # TIFF RATIONAL, SRATIONAL
-_COMPRESSION_LOSSLESS_JPEG = 7
 
 
 # ----------------------------------------------------------------------------- tag helpers
@@ -227,49 +227,6 @@ def _expand_black(path, black, repeat, deltas_h, deltas_v, samples) -> np.ndarra
     return out
 
 
-def _check_pixel_data(page, file_size: int) -> Optional[str]:
-    """A cheap structural check of the raw IFD's strips/tiles; the problem found, or None.
-
-    LibRaw decodes short or missing pixel data silently (as zeros), so this is what tells a
-    truncated file apart. Checks: segment count matches the image and strip/tile size; every
-    segment lies inside the file; uncompressed data has its full size; lossless-JPEG data (which
-    needs at least one bit per sample, ITU T.81 Annex H) is not implausibly small.
-    """
-    width, height = int(page.imagewidth), int(page.imagelength)
-    samples = int(page.samplesperpixel or 1)
-    bits = int(np.max(np.atleast_1d(page.bitspersample))) if page.bitspersample else 16
-    planar_separate = int(getattr(page, "planarconfig", 1) or 1) == 2
-    planes = samples if planar_separate else 1
-    if page.is_tiled:
-        tw, tl = int(page.tilewidth), int(page.tilelength)
-        expected = math.ceil(width / tw) * math.ceil(height / tl) * planes
-        kind = "tiles"
-    else:
-        rps = int(page.rowsperstrip or height) or height
-        expected = math.ceil(height / max(1, min(rps, height))) * planes
-        kind = "strips"
-    offsets = tuple(int(v) for v in (page.dataoffsets or ()))
-    counts = tuple(int(v) for v in (page.databytecounts or ()))
-    if len(offsets) != expected or len(counts) != len(offsets):
-        return (f"raw image has {len(offsets)} {kind} with {len(counts)} byte counts, "
-                f"expected {expected}: pixel data incomplete")
-    ends = [o + c for o, c in zip(offsets, counts)]
-    if ends and max(ends) > file_size:
-        return (f"raw image data runs to byte {max(ends)} but the file has {file_size} bytes: "
-                "file truncated")
-    total = sum(counts)
-    npix = width * height * samples
-    compression = int(page.compression)
-    if compression == 1:
-        need = npix * bits // 8
-        if total < need:
-            return f"uncompressed raw data has {total} bytes, expected {need}"
-    elif compression == _COMPRESSION_LOSSLESS_JPEG and total < npix // 8:
-        return (f"compressed raw data has {total} bytes, too few for {width}x{height} samples "
-                "(lossless JPEG needs at least 1 bit each): pixel data missing")
-    return None
-
-
 # ----------------------------------------------------------------------------- public API
 
 def read_dng_info(path) -> DngInfo:
@@ -279,7 +236,10 @@ def read_dng_info(path) -> DngInfo:
     .dng), a TIFF without DNGVersion (spec ch. 4 'DNGVersion': required in IFD0), a header cut
     short, malformed tags, or no raw IFD. A file whose raw pixel data is short or missing but whose
     tags are complete returns normally, with the problem in `info.pixel_data_problem` and
-    `info.warnings`; `read_dng_pixels` then raises. Missing colour tags are *not* an error here:
+    `info.warnings`; `read_dng_pixels` then raises. Pixel data that contradicts its tags (byte
+    counts that do not match width x rows x BitsPerSample, segments lying on the file's header or
+    tags, a BitsPerSample that cannot hold the WhiteLevel: `g2r_jax.io.pixel_layout`) raises:
+    such tags cannot be trusted. Missing colour tags are *not* an error here:
     see `require_colour_tags`; LinearRaw or non-Bayer CFAs neither: see `require_bayer_cfa`.
 
     Conventions: matrices 3x3 float64; `cfa_pattern` colour indices 0=R, 1=G, 2=B mapped through
@@ -384,7 +344,35 @@ def _short(exc) -> str:
     return (text[:160] + "...") if len(text) > 160 else (text or type(exc).__name__)
 
 
+class _Ifds:
+    """The raw IFD and IFD0 of one DNG, and where each kind of tag is looked up first (module
+    note: raw-IFD tags in the raw IFD, then IFD0; colour tags in IFD0, then the raw IFD)."""
+
+    def __init__(self, path: Path, ifd0, raw):
+        self.path, self.ifd0, self.raw = path, ifd0, raw
+
+    def raw_first(self, name):
+        tag = _tag(self.raw, name)
+        return tag if tag is not None else _tag(self.ifd0, name)
+
+    def ifd0_first(self, name):
+        tag = _tag(self.ifd0, name)
+        return tag if tag is not None else _tag(self.raw, name)
+
+    def matrix(self, name, *, required_size_note: str = "expected 9"):
+        """A 3x3 matrix tag (IFD0 first), or None when absent."""
+        tag = self.ifd0_first(name)
+        if tag is None:
+            return None
+        values = _floats(self.path, tag, name)
+        if values.size != 9:
+            raise DngError(self.path, f"{name} has {values.size} values, {required_size_note}")
+        return values.reshape(3, 3)
+
+
 def _parse(path: Path, tif, file_size: int) -> DngInfo:
+    """Every tag g2r_jax uses, from an open TiffFile, into a DngInfo; then the pixel data's
+    layout against the tags (g2r_jax.io.pixel_layout)."""
     ifd0 = tif.pages.first
     version_tag = _tag(ifd0, "DNGVersion")
     if version_tag is None:
@@ -393,57 +381,63 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
     raw = _find_raw_ifd(tif)
     if raw is None:
         raise DngError(path, "DNG has no main raw image IFD (NewSubFileType 0)")
-
     info = DngInfo(path=str(path), dng_version=version)
-
-    def raw_first(name):
-        tag = _tag(raw, name)
-        return tag if tag is not None else _tag(ifd0, name)
-
-    def ifd0_first(name):
-        tag = _tag(ifd0, name)
-        return tag if tag is not None else _tag(raw, name)
-
+    ifds = _Ifds(path, ifd0, raw)
     info.width, info.height = int(raw.imagewidth), int(raw.imagelength)
     info.photometric = int(raw.photometric)
     info.is_cfa = info.photometric == PHOTOMETRIC_CFA
     bps = raw.bitspersample
     info.bits_per_sample = int(np.max(np.atleast_1d(bps))) if bps else 16
-    samples = int(raw.samplesperpixel or 1)
+    _read_cfa(info, ifds)
+    _read_levels(info, ifds, int(raw.samplesperpixel or 1))
+    for attr, name in (("unique_camera_model", "UniqueCameraModel"), ("make", "Make"), ("model", "Model")):
+        tag = ifds.ifd0_first(name)
+        if tag is not None:
+            setattr(info, attr, _text(tag))
+    _read_colour(info, ifds, tif.byteorder)
+    _read_white_balance(info, ifds)
+    _read_exposure(info, ifds)
+    _read_geometry(info, ifds)
+    _check_pixel_layout(info, raw, (ifd0, raw), tif.filehandle, file_size)
+    return info
 
-    # --- CFA layout (spec ch. 4 'CFARepeatPatternDim', 'CFAPattern', 'CFAPlaneColor')
-    if info.is_cfa:
-        dim_tag, pat_tag = _tag(raw, "CFARepeatPatternDim"), _tag(raw, "CFAPattern")
-        if pat_tag is None:
-            raise DngError(path, "CFA raw image without a CFAPattern tag")
-        dims = _ints(path, dim_tag, "CFARepeatPatternDim") if dim_tag is not None else (2, 2)
-        if len(dims) != 2 or dims[0] < 1 or dims[1] < 1:
-            raise DngError(path, f"bad CFARepeatPatternDim {dims}")
-        pattern = _raw_bytes(pat_tag)
-        if len(pattern) != dims[0] * dims[1]:
-            raise DngError(path, f"CFAPattern has {len(pattern)} entries, expected "
-                                 f"{dims[0]}x{dims[1]}")
-        plane_tag = _tag(raw, "CFAPlaneColor")
-        planes = tuple(_raw_bytes(plane_tag)) if plane_tag is not None else (0, 1, 2)
-        try:
-            info.cfa_pattern = tuple(int(planes[p]) for p in pattern)
-        except IndexError:
-            raise DngError(path, f"CFAPattern {tuple(pattern)} refers to planes beyond "
-                                 f"CFAPlaneColor {planes}") from None
-        info.cfa_repeat_dim = (int(dims[0]), int(dims[1]))
-    else:
-        info.cfa_pattern = ()
-        info.cfa_repeat_dim = ()
 
-    # --- levels (spec ch. 4 'BlackLevel', 'WhiteLevel')
-    black_tag = raw_first("BlackLevel")
-    rep_tag = raw_first("BlackLevelRepeatDim")
+def _read_cfa(info: DngInfo, ifds: _Ifds) -> None:
+    """CFA layout (spec ch. 4 'CFARepeatPatternDim', 'CFAPattern', 'CFAPlaneColor')."""
+    path, raw = ifds.path, ifds.raw
+    if not info.is_cfa:
+        info.cfa_pattern, info.cfa_repeat_dim = (), ()
+        return
+    dim_tag, pat_tag = _tag(raw, "CFARepeatPatternDim"), _tag(raw, "CFAPattern")
+    if pat_tag is None:
+        raise DngError(path, "CFA raw image without a CFAPattern tag")
+    dims = _ints(path, dim_tag, "CFARepeatPatternDim") if dim_tag is not None else (2, 2)
+    if len(dims) != 2 or dims[0] < 1 or dims[1] < 1:
+        raise DngError(path, f"bad CFARepeatPatternDim {dims}")
+    pattern = _raw_bytes(pat_tag)
+    if len(pattern) != dims[0] * dims[1]:
+        raise DngError(path, f"CFAPattern has {len(pattern)} entries, expected {dims[0]}x{dims[1]}")
+    plane_tag = _tag(raw, "CFAPlaneColor")
+    planes = tuple(_raw_bytes(plane_tag)) if plane_tag is not None else (0, 1, 2)
+    try:
+        info.cfa_pattern = tuple(int(planes[p]) for p in pattern)
+    except IndexError:
+        raise DngError(path, f"CFAPattern {tuple(pattern)} refers to planes beyond "
+                             f"CFAPlaneColor {planes}") from None
+    info.cfa_repeat_dim = (int(dims[0]), int(dims[1]))
+
+
+def _read_levels(info: DngInfo, ifds: _Ifds, samples: int) -> None:
+    """Black and white levels (spec ch. 4 'BlackLevel', 'BlackLevelDeltaH/V', 'WhiteLevel',
+    'LinearizationTable')."""
+    path = ifds.path
+    black_tag, rep_tag = ifds.raw_first("BlackLevel"), ifds.raw_first("BlackLevelRepeatDim")
     repeat = _ints(path, rep_tag, "BlackLevelRepeatDim") if rep_tag is not None else (1, 1)
     if len(repeat) != 2:
         raise DngError(path, f"bad BlackLevelRepeatDim {repeat}")
     black = (_floats(path, black_tag, "BlackLevel") if black_tag is not None
              else np.zeros(repeat[0] * repeat[1] * samples))
-    dh, dv = raw_first("BlackLevelDeltaH"), raw_first("BlackLevelDeltaV")
+    dh, dv = ifds.raw_first("BlackLevelDeltaH"), ifds.raw_first("BlackLevelDeltaV")
     info.black_level = _expand_black(
         path, black, repeat,
         _floats(path, dh, "BlackLevelDeltaH") if dh is not None else None,
@@ -451,13 +445,13 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
         samples)
     # LinearizationTable (spec ch. 4): stored values index the table; BlackLevel and WhiteLevel are
     # in the linearised values (LibRaw applies the table when decoding, see read_dng_pixels).
-    table_tag = raw_first("LinearizationTable")
+    table_tag = ifds.raw_first("LinearizationTable")
     if table_tag is not None:
         table = _floats(path, table_tag, "LinearizationTable")
         if not 1 <= table.size <= 65536 or np.min(table) < 0 or np.max(table) > 65535:
             raise DngError(path, f"LinearizationTable: {table.size} entries, values must lie in 0..65535")
         info.linearization_table = table
-    white_tag = raw_first("WhiteLevel")
+    white_tag = ifds.raw_first("WhiteLevel")
     if white_tag is not None:
         whites = _floats(path, white_tag, "WhiteLevel")
         info.white_level = float(whites.max())
@@ -469,43 +463,25 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
     else:  # spec default: 2 ** BitsPerSample - 1
         info.white_level = float(2 ** info.bits_per_sample - 1)
 
-    # --- names
-    for attr, name in (("unique_camera_model", "UniqueCameraModel"), ("make", "Make"),
-                       ("model", "Model")):
-        tag = ifd0_first(name)
-        if tag is not None:
-            setattr(info, attr, _text(tag))
 
-    # --- colour (spec ch. 4 'ColorMatrix1'..'ForwardMatrix3'; spec 'Colour' for their use)
+def _read_colour(info: DngInfo, ifds: _Ifds, byteorder: str) -> None:
+    """Colour matrices and their illuminants (spec ch. 4 'ColorMatrix1'..'ForwardMatrix3',
+    'IlluminantData1..3'; spec 'Colour' for their use)."""
+    path = ifds.path
     illuminants, matrices, calibrations, forwards, whites = [], [], [], [], []
-
-    def optional_matrix(name):
-        """A 3x3 matrix tag from IFD0 (then the raw IFD), or None when absent."""
-        tag = ifd0_first(name)
-        if tag is None:
-            return None
-        values = _floats(path, tag, name)
-        if values.size != 9:
-            raise DngError(path, f"{name} has {values.size} values, expected 9")
-        return values.reshape(3, 3)
-
     for k in (1, 2, 3):
-        cm = ifd0_first(f"ColorMatrix{k}")
-        if cm is None:
+        if ifds.ifd0_first(f"ColorMatrix{k}") is None:
             continue
-        values = _floats(path, cm, f"ColorMatrix{k}")
-        if values.size != 9:
-            raise DngError(path, f"ColorMatrix{k} has {values.size} values; only 3-colour "
-                                 "cameras (9 values) are supported")
-        matrices.append(values.reshape(3, 3))
-        ill = ifd0_first(f"CalibrationIlluminant{k}")
+        matrices.append(ifds.matrix(f"ColorMatrix{k}", required_size_note="only 3-colour cameras "
+                                                                          "(9 values) are supported"))
+        ill = ifds.ifd0_first(f"CalibrationIlluminant{k}")
         illuminants.append(_ints(path, ill, f"CalibrationIlluminant{k}")[0] if ill is not None else 0)
-        calibrations.append(optional_matrix(f"CameraCalibration{k}"))
-        forwards.append(optional_matrix(f"ForwardMatrix{k}"))
-        data = ifd0_first(f"IlluminantData{k}") if illuminants[-1] == 255 else None
+        calibrations.append(ifds.matrix(f"CameraCalibration{k}"))
+        forwards.append(ifds.matrix(f"ForwardMatrix{k}"))
+        data = ifds.ifd0_first(f"IlluminantData{k}") if illuminants[-1] == 255 else None
         if data is not None:   # DNG 1.6: the white of an 'other' (255) illuminant
             try:
-                whites.append(tuple(parse_illuminant_data(_raw_bytes(data), tif.byteorder)))
+                whites.append(tuple(parse_illuminant_data(_raw_bytes(data), byteorder)))
             except ValueError as error:
                 raise DngError(path, f"IlluminantData{k}: {error}") from None
         else:
@@ -521,9 +497,13 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
     elif any(f is not None for f in forwards):
         info.warnings.append("ForwardMatrix present for some calibration illuminants only; ignored")
 
+
+def _read_white_balance(info: DngInfo, ifds: _Ifds) -> None:
+    """AnalogBalance, AsShotNeutral, AsShotWhiteXY, BaselineExposure, NoiseProfile (spec ch. 4)."""
+    path = ifds.path
     for attr, name, n in (("analog_balance", "AnalogBalance", 3), ("as_shot_neutral", "AsShotNeutral", 3),
                           ("as_shot_white_xy", "AsShotWhiteXY", 2)):
-        tag = ifd0_first(name)
+        tag = ifds.ifd0_first(name)
         if tag is not None:
             vals = _floats(path, tag, name)
             if vals.size != n:
@@ -531,25 +511,29 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
             setattr(info, attr, vals)
     if info.as_shot_neutral is not None and np.any(info.as_shot_neutral <= 0):
         raise DngError(path, f"AsShotNeutral {tuple(info.as_shot_neutral)} has non-positive values")
-    tag = ifd0_first("BaselineExposure")
+    tag = ifds.ifd0_first("BaselineExposure")
     if tag is not None:
         info.baseline_exposure = float(_floats(path, tag, "BaselineExposure")[0])
-    tag = raw_first("NoiseProfile")
+    tag = ifds.raw_first("NoiseProfile")
     if tag is not None:
         vals = _floats(path, tag, "NoiseProfile")
         if vals.size < 2 or vals.size % 2:
             raise DngError(path, f"NoiseProfile has {vals.size} values, expected pairs")
         info.noise_profile = vals.reshape(-1, 2)
 
-    # --- exposure (EXIF 2.3 ISOSpeedRatings 34855 / ExposureTime 33434; in IFD0 per TIFF/EP or EXIF IFD)
-    exif = _tag(ifd0, "ExifIFD")
+
+def _read_exposure(info: DngInfo, ifds: _Ifds) -> None:
+    """ISO and exposure time (EXIF 2.3 ISOSpeedRatings 34855 / ExposureTime 33434; in IFD0 per
+    TIFF/EP, or in the EXIF IFD)."""
+    path = ifds.path
+    exif = _tag(ifds.ifd0, "ExifIFD")
     exif = exif.value if exif is not None and isinstance(exif.value, dict) else {}
-    tag = ifd0_first("ISOSpeedRatings")
+    tag = ifds.ifd0_first("ISOSpeedRatings")
     if tag is not None:
         info.iso = float(_floats(path, tag, "ISOSpeedRatings")[0])
     elif exif.get("ISOSpeedRatings") is not None:
         info.iso = float(np.atleast_1d(exif["ISOSpeedRatings"])[0])
-    tag = ifd0_first("ExposureTime")
+    tag = ifds.ifd0_first("ExposureTime")
     if tag is not None:
         info.exposure_time = float(_floats(path, tag, "ExposureTime")[0])
     elif exif.get("ExposureTime") is not None:
@@ -559,32 +543,42 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
         elif value.size == 1:
             info.exposure_time = float(value[0])
 
-    # --- geometry (spec ch. 4 'ActiveArea', 'DefaultCropOrigin', 'DefaultCropSize')
-    tag = raw_first("ActiveArea")
+
+def _read_geometry(info: DngInfo, ifds: _Ifds) -> None:
+    """ActiveArea, DefaultCropOrigin/Size and the opcode lists (spec ch. 4, ch. 7)."""
+    path = ifds.path
+    tag = ifds.raw_first("ActiveArea")
     if tag is not None:
         area = _ints(path, tag, "ActiveArea")
         if len(area) != 4 or not (0 <= area[0] < area[2] <= info.height and 0 <= area[1] < area[3] <= info.width):
             raise DngError(path, f"ActiveArea {area} does not fit the {info.width}x{info.height} raw image")
         info.active_area = area
     for attr, name in (("default_crop_origin", "DefaultCropOrigin"), ("default_crop_size", "DefaultCropSize")):
-        tag = raw_first(name)
+        tag = ifds.raw_first(name)
         if tag is not None:
             vals = _floats(path, tag, name)
             if vals.size != 2:
                 raise DngError(path, f"{name} has {vals.size} values, expected 2")
             setattr(info, attr, tuple(float(v) for v in vals))
     for k in (1, 2, 3):
-        tag = raw_first(f"OpcodeList{k}")
+        tag = ifds.raw_first(f"OpcodeList{k}")
         if tag is not None:
             info.opcode_lists[f"OpcodeList{k}"] = _raw_bytes(tag)
 
-    # --- can the pixels be decoded, and is the pixel data there at all?
+
+def _check_pixel_layout(info: DngInfo, raw, pages, handle, file_size: int) -> None:
+    """Refuse tags that contradict the pixel data; note pixel data that is missing or that this
+    LibRaw cannot decode (tags still usable: `info.pixel_data_problem`)."""
     info.compression = int(raw.compression)
-    problem = undecodable_reason(info.compression) or _check_pixel_data(raw, file_size)
+    found = layout_problem(raw, pages, handle, file_size)
+    refusal = found.refusal or bits_problem(info.bits_per_sample, info.white_level,
+                                            info.linearization_table is not None)
+    if refusal is not None:
+        raise DngError(info.path, refusal)
+    problem = undecodable_reason(info.compression) or found.warning
     if problem is not None:
         info.pixel_data_problem = problem
         info.warnings.append(problem)
-    return info
 
 
 def require_colour_tags(info: DngInfo) -> DngInfo:
@@ -642,7 +636,9 @@ def read_dng_pixels(path, info: Optional[DngInfo] = None) -> np.ndarray:
 
     Raises `DngError` naming the file for: non-Bayer or LinearRaw files, pixel data found missing
     or truncated by the structural check of `read_dng_info` (LibRaw itself would silently return
-    zeros), and anything LibRaw refuses to decode.
+    zeros), anything LibRaw refuses to decode, a decoded frame smaller than the tagged size, and
+    a decoded raster its tags cannot describe (`pixel_layout.decoded_problem`: most pixels above
+    WhiteLevel, a constant raster outside black..white, zeros where the black level is high).
     """
     import rawpy
 
@@ -666,7 +662,10 @@ def read_dng_pixels(path, info: Optional[DngInfo] = None) -> np.ndarray:
                 top, left, bottom, right = info.active_area or (0, 0, info.height, info.width)
                 mosaic = np.array(full[top:bottom, left:right], copy=True)
                 tile = colours[top:top + 2, left:left + 2]
-            else:  # LibRaw padded or cropped the raw frame: its visible area is the active one
+            elif full.shape[0] < info.height or full.shape[1] < info.width:
+                raise DngError(path, f"LibRaw decoded a {full.shape[1]}x{full.shape[0]} raw frame, the tags say "
+                                     f"{info.width}x{info.height}: the pixel data does not match its tags")
+            else:  # LibRaw padded the raw frame: its visible area is the active one
                 vis = raw.raw_image_visible
                 mosaic = np.array(vis, copy=True)
                 s = raw.sizes
@@ -688,4 +687,7 @@ def read_dng_pixels(path, info: Optional[DngInfo] = None) -> np.ndarray:
     if libraw_pattern is not None and libraw_pattern != tuple(info.cfa_pattern):
         raise DngError(path, f"LibRaw's CFA colours {libraw_pattern} at the active-area origin "
                              f"disagree with the CFAPattern tag {tuple(info.cfa_pattern)}")
+    problem = decoded_problem(mosaic, info.black_level, info.white_level, info.cfa_pattern)
+    if problem is not None:
+        raise DngError(path, problem)
     return mosaic

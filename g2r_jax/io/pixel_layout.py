@@ -1,0 +1,289 @@
+"""Does a DNG's raw pixel data agree with the tags that describe it?
+
+LibRaw decodes whatever bytes the tags point at: with BitsPerSample 8 on 16-bit data, an
+ImageWidth one column short or StripOffsets 0 it returns a raster of garbage without a word
+(issue 34). These checks compare the raw IFD's layout tags with each other and with the file
+before any pixel is decoded, and the decoded raster with the levels the tags promise after.
+
+Layout rules: TIFF 6.0 (Adobe, 1992) section 3 (StripOffsets, StripByteCounts, RowsPerStrip:
+"StripsPerImage = floor((ImageLength + RowsPerStrip - 1) / RowsPerStrip)"; rows of uncompressed
+data padded to a whole byte) and section 15 (TileOffsets, TileByteCounts: tiles cover the image,
+padded tiles included, "TilesPerImage = TilesAcross * TilesDown"); DNG specification 1.6 ch. 4
+'BitsPerSample' (1..32 bits), 'WhiteLevel' (default 2 ** BitsPerSample - 1, so a level above that
+cannot be stored) and ch. 3 'Compression' (lossless JPEG, ITU T.81 Annex H: the stream's frame
+header, SOF3, gives its sample precision and size).
+
+Two kinds of finding:
+- a *refusal* (`LayoutProblem.refusal`): the tags contradict the data or each other (byte counts
+  that do not match width x rows x bits, a segment on top of the file's header or tags, a
+  BitsPerSample that cannot hold the WhiteLevel); the file's tags cannot be trusted, the reader
+  raises;
+- a *warning* (`LayoutProblem.warning`): pixel data missing or cut short, the tags themselves
+  consistent (e.g. a header-only DNG); the tags stay usable, pixel decoding is refused.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Optional
+
+import numpy as np
+
+__all__ = ["LayoutProblem", "layout_problem", "bits_problem", "decoded_problem",
+           "MAX_SHARE_ABOVE_WHITE", "ZERO_FILL_SHARE", "ZERO_FILL_MIN_BLACK", "GREEN_PHASE_RATIO"]
+
+_OFFSET_TAGS = {"strips": (273, 279), "tiles": (324, 325)}   # (offsets, byte counts)
+_HEADER_BYTES = 8            # TIFF header: byte order, 42, offset of IFD0
+_IFD_ENTRY_BYTES = 12
+_LOSSLESS_JPEG = 7
+_UNCOMPRESSED = 1
+MAX_SHARE_ABOVE_WHITE = 0.01   # real sensors: a few hot pixels above WhiteLevel at most
+ZERO_FILL_SHARE = 0.5          # LibRaw fills data it cannot find with zeros
+ZERO_FILL_MIN_BLACK = 16.0     # below this black level, zeros can be real dark pixels
+GREEN_PHASE_RATIO = 2.0        # measured: 0.11 and 0.26 on a g2r-convert example and a GoPro frame, 4-7 shifted
+
+
+@dataclasses.dataclass(frozen=True)
+class LayoutProblem:
+    """One finding about the raw IFD's pixel data: `refusal` (the tags contradict the data) or
+    `warning` (the data is missing or short); both one short line."""
+
+    refusal: Optional[str] = None
+    warning: Optional[str] = None
+
+
+@dataclasses.dataclass(frozen=True)
+class _Layout:
+    """The raw IFD's segment geometry, read from the tags as stored (tifffile repairs some)."""
+
+    kind: str            # 'strips' or 'tiles'
+    width: int
+    height: int
+    samples: int         # samples per pixel in one segment (1 when planar-separate)
+    planes: int
+    bits: int
+    compression: int
+    segment_rows: int    # RowsPerStrip or TileLength
+    segment_width: int   # ImageWidth or TileWidth
+    offsets: tuple
+    counts: tuple
+
+    def expected_segments(self) -> int:
+        down = math.ceil(self.height / self.segment_rows)
+        across = math.ceil(self.width / self.segment_width) if self.kind == "tiles" else 1
+        return down * across * self.planes
+
+    def row_bytes(self) -> int:
+        return math.ceil(self.segment_width * self.samples * self.bits / 8)
+
+
+def _values(page, code) -> tuple:
+    value = page.tags.valueof(code)
+    if value is None:
+        return ()
+    return tuple(int(v) for v in np.atleast_1d(np.asarray(value)).ravel())
+
+
+def _layout(page) -> _Layout:
+    width, height = int(page.imagewidth), int(page.imagelength)
+    samples = int(page.samplesperpixel or 1)
+    bits_tag = _values(page, 258)
+    bits = max(bits_tag) if bits_tag else 1   # TIFF 6.0 default: 1
+    separate = int(getattr(page, "planarconfig", 1) or 1) == 2
+    kind = "tiles" if page.tags.get(322) is not None else "strips"
+    if kind == "tiles":
+        rows, across = int(page.tags.valueof(323) or 0), int(page.tags.valueof(322) or 0)
+    else:
+        rows_tag = _values(page, 278)
+        rows = min(rows_tag[0], height) if rows_tag and rows_tag[0] > 0 else height
+        across = width
+    offsets_code, counts_code = _OFFSET_TAGS[kind]
+    return _Layout(kind, width, height, 1 if separate else samples, samples if separate else 1, bits,
+                   int(page.compression), max(rows, 0), max(across, 0),
+                   _values(page, offsets_code), _values(page, counts_code))
+
+
+def _structure_ranges(pages) -> list:
+    """(start, end, what) of the TIFF header, each IFD's entries and each tag value stored
+    outside its entry: bytes that pixel data must not share."""
+    ranges = [(0, _HEADER_BYTES, "the TIFF header")]
+    for page in pages:
+        start = int(page.offset)
+        ranges.append((start, start + 2 + _IFD_ENTRY_BYTES * len(page.tags) + 4, f"the IFD at byte {start}"))
+        for tag in page.tags.values():
+            size = int(tag.valuebytecount)
+            if size > 4 and int(tag.valueoffset) != int(tag.offset) + 8:   # stored outside the entry
+                ranges.append((int(tag.valueoffset), int(tag.valueoffset) + size, f"the value of tag {tag.code}"))
+    return ranges
+
+
+def _geometry_refusal(layout: _Layout) -> Optional[str]:
+    if not 1 <= layout.bits <= 32:
+        return f"BitsPerSample {layout.bits} is outside 1..32"
+    if layout.width < 1 or layout.height < 1:
+        return f"ImageWidth x ImageLength {layout.width}x{layout.height} is empty"
+    if layout.segment_rows < 1 or layout.segment_width < 1:
+        name = "TileWidth/TileLength" if layout.kind == "tiles" else "RowsPerStrip"
+        return f"{name} gives empty {layout.kind}"
+    if len(layout.counts) != len(layout.offsets):
+        return (f"{len(layout.offsets)} {layout.kind} but {len(layout.counts)} byte counts: "
+                "the pixel data's tags disagree")
+    return None
+
+
+def _overlap_refusal(layout: _Layout, pages) -> Optional[str]:
+    """Pixel data must lie beside the file's structure, and segments beside each other (two
+    segments at the same place, a writer's shared tile, are allowed)."""
+    segments = sorted(set(zip(layout.offsets, layout.counts)))
+    for offset, count in segments:
+        for start, end, what in _structure_ranges(pages):
+            if count > 0 and offset < end and start < offset + count:
+                return (f"pixel data at bytes {offset}..{offset + count} lies on {what}: "
+                        f"{'StripOffsets' if layout.kind == 'strips' else 'TileOffsets'} is wrong")
+    for (offset, count), (next_offset, _) in zip(segments, segments[1:]):
+        if offset + count > next_offset:
+            return f"{layout.kind} at bytes {offset} and {next_offset} overlap: the pixel data's tags are wrong"
+    return None
+
+
+def _uncompressed_refusal(layout: _Layout) -> Optional[str]:
+    """Each uncompressed segment holds exactly its rows (a last strip may be written full size,
+    a count may be rounded up to an even number of bytes)."""
+    full = layout.row_bytes() * layout.segment_rows
+    last_rows = layout.height - (math.ceil(layout.height / layout.segment_rows) - 1) * layout.segment_rows
+    per_plane = len(layout.counts) // max(layout.planes, 1)
+    for index, count in enumerate(layout.counts):
+        allowed = {full}
+        if layout.kind == "strips" and (index + 1) % max(per_plane, 1) == 0:
+            allowed.add(layout.row_bytes() * last_rows)
+        allowed |= {size + size % 2 for size in allowed}
+        if count not in allowed:
+            expected = " or ".join(str(size) for size in sorted(allowed))
+            return (f"uncompressed {layout.kind[:-1]} {index} has {count} bytes; "
+                    f"{layout.segment_width} x {min(layout.segment_rows, layout.height)} samples of "
+                    f"{layout.bits} bits need {expected}: size tags disagree with the data")
+    return None
+
+
+def _lossless_jpeg_frame(handle, offset: int, count: int) -> Optional[tuple]:
+    """(precision, rows, columns, components) from the first SOF3 frame header of a lossless
+    JPEG stream (ITU T.81 B.2.2), or None when the stream has none in its first 4 KiB."""
+    handle.seek(offset)
+    data = handle.read(min(count, 4096))
+    at = data.find(b"\xff\xc3")
+    if at < 0 or at + 10 > len(data):
+        return None
+    precision, rows, columns, components = data[at + 4], int.from_bytes(data[at + 5:at + 7], "big"), \
+        int.from_bytes(data[at + 7:at + 9], "big"), data[at + 9]
+    return precision, rows, columns, components
+
+
+def _lossless_jpeg_refusal(layout: _Layout, handle) -> Optional[str]:
+    """Every segment must start with a JPEG SOI marker (ITU T.81 B.2.1), and the first segment's
+    frame must fit its BitsPerSample and hold the segment's samples."""
+    if not layout.offsets or layout.counts[0] <= 0:
+        return None
+    for index, offset in enumerate(layout.offsets):
+        handle.seek(offset)
+        if handle.read(2) != b"\xff\xd8":
+            return (f"{layout.kind[:-1]} {index} at byte {offset} does not start a JPEG stream (no SOI "
+                    "marker): Compression 7 or the offsets are wrong")
+    frame = _lossless_jpeg_frame(handle, layout.offsets[0], layout.counts[0])
+    if frame is None:
+        return (f"{layout.kind[:-1]} 0 at byte {layout.offsets[0]} holds no lossless JPEG frame "
+                "(SOF3): Compression 7 or the offsets are wrong")
+    precision, rows, columns, components = frame
+    if precision > layout.bits:
+        return f"lossless JPEG data of {precision} bits, but BitsPerSample is {layout.bits}"
+    if rows * columns * components != layout.segment_rows * layout.segment_width * layout.samples:
+        return (f"lossless JPEG {layout.kind[:-1]} 0 holds {rows}x{columns}x{components} samples, its "
+                f"tags say {layout.segment_rows}x{layout.segment_width}x{layout.samples}")
+    return None
+
+
+def _missing_warning(layout: _Layout, file_size: int) -> Optional[str]:
+    """Pixel data absent or cut short while the tags agree with each other."""
+    expected = layout.expected_segments()
+    if len(layout.offsets) != expected:
+        return (f"raw image has {len(layout.offsets)} {layout.kind} with {len(layout.counts)} byte counts, "
+                f"expected {expected}: pixel data incomplete")
+    ends = [offset + count for offset, count in zip(layout.offsets, layout.counts)]
+    if ends and max(ends) > file_size:
+        return f"raw image data runs to byte {max(ends)} but the file has {file_size} bytes: file truncated"
+    total, samples = sum(layout.counts), layout.width * layout.height * layout.samples * layout.planes
+    if layout.compression == _LOSSLESS_JPEG and total < samples // 8:
+        return (f"compressed raw data has {total} bytes, too few for {layout.width}x{layout.height} samples "
+                "(lossless JPEG needs at least 1 bit each): pixel data missing")
+    return None
+
+
+def layout_problem(page, pages, handle, file_size: int) -> LayoutProblem:
+    """Check the raw IFD `page` (a tifffile TiffPage) against the file: `pages` are the IFDs read
+    (their entries and values must not be overwritten by pixel data), `handle` a binary file
+    object of the DNG (to read a lossless JPEG frame header). Returns what was found."""
+    layout = _layout(page)
+    refusal = _geometry_refusal(layout)
+    if refusal is None:
+        refusal = _overlap_refusal(layout, pages)
+    warning = None if refusal else _missing_warning(layout, file_size)
+    if refusal is None and warning is None:
+        if layout.compression == _UNCOMPRESSED:
+            refusal = _uncompressed_refusal(layout)
+        elif layout.compression == _LOSSLESS_JPEG:
+            refusal = _lossless_jpeg_refusal(layout, handle)
+    return LayoutProblem(refusal, warning)
+
+
+def bits_problem(bits: int, white_level: float, has_linearization_table: bool) -> Optional[str]:
+    """A WhiteLevel that BitsPerSample cannot store (DNG spec ch. 4 'WhiteLevel'); with a
+    LinearizationTable the levels are in linearised values and any size is allowed."""
+    if has_linearization_table or white_level <= 2 ** bits - 1:
+        return None
+    return (f"BitsPerSample {bits} stores values up to {2 ** bits - 1}, but WhiteLevel is {white_level:g}: "
+            "the tags disagree with each other")
+
+
+def _green_phase_problem(mosaic: np.ndarray, cfa_pattern) -> Optional[str]:
+    """The two green sites of a 2x2 Bayer tile sample the same filter a pixel apart, so they
+    differ less than the other two sites (red against blue) on any image with content; data
+    read one pixel or one row off puts red and blue where the tags say green. Refused when the
+    tagged greens differ more than `GREEN_PHASE_RATIO` times as much as the other pair."""
+    pattern = tuple(int(c) for c in cfa_pattern or ())
+    if len(pattern) != 4 or pattern.count(1) != 2 or min(mosaic.shape) < 4:
+        return None
+    height, width = mosaic.shape[0] // 2 * 2, mosaic.shape[1] // 2 * 2
+    sites = [mosaic[i:height:2, j:width:2].astype(np.float64) for i in (0, 1) for j in (0, 1)]
+    green = [k for k in range(4) if pattern[k] == 1]
+    other = [k for k in range(4) if pattern[k] != 1]
+    green_gap = float(np.mean(np.abs(sites[green[0]] - sites[green[1]])))
+    other_gap = float(np.mean(np.abs(sites[other[0]] - sites[other[1]])))
+    if green_gap > GREEN_PHASE_RATIO * max(other_gap, 1.0):
+        return (f"the tagged green sites differ {green_gap / max(other_gap, 1.0):.1f} times as much as red "
+                "and blue: the pixel data is shifted against its CFAPattern (offsets or width wrong)")
+    return None
+
+
+def decoded_problem(mosaic: np.ndarray, black_level, white_level: float, cfa_pattern=None) -> Optional[str]:
+    """A decoded raster its tags cannot describe: values far above WhiteLevel in more than
+    `MAX_SHARE_ABOVE_WHITE` of the pixels (bytes read at the wrong place or width), a constant
+    raster outside black..white, zeros in most pixels of a camera whose black level is at least
+    `ZERO_FILL_MIN_BLACK` (LibRaw's fill for data it could not find), or the CFA's green sites
+    out of phase with `cfa_pattern` (`_green_phase_problem`)."""
+    if mosaic.size == 0:
+        return "decoded raster is empty"
+    black = float(np.min(np.asarray(black_level, np.float64)))
+    largest, smallest = int(mosaic.max()), int(mosaic.min())
+    if largest == smallest and not black <= largest <= white_level:
+        return (f"every decoded pixel is {largest}, outside the tagged range {black:g}..{white_level:g}: "
+                "the pixel data is not where the tags say")
+    above = float(np.count_nonzero(mosaic > white_level)) / mosaic.size
+    if above > MAX_SHARE_ABOVE_WHITE:
+        return (f"{100 * above:.1f} % of the decoded pixels exceed WhiteLevel {white_level:g} (largest {largest}): "
+                "the pixel data does not match its tags")
+    if black >= ZERO_FILL_MIN_BLACK:
+        zeros = float(np.count_nonzero(mosaic == 0)) / mosaic.size
+        if zeros > ZERO_FILL_SHARE:
+            return (f"{100 * zeros:.0f} % of the decoded pixels are 0, far below the black level {black:g}: "
+                    "pixel data missing")
+    return _green_phase_problem(mosaic, cfa_pattern)
