@@ -1,15 +1,14 @@
 """g2r-downstream: does a network trained on g2r_jax RAW of your CG images work on your camera?
 
-Trains illuminant estimators on synthetic RAW of the user's CG images (g2r_jax, and UPI as the
-baseline), on the user's real DNGs (cross-validated), and on the controls that split the gap
-(`g2r_jax.downstream.experiment`); tests each on the real DNGs, labelled by their AsShotNeutral.
-Optionally the same for denoising on a burst (`g2r_jax.downstream.denoising`).
+Parses the arguments and calls `g2r_jax.downstream.run_check` (the illuminant estimators on real
+DNGs, the controls that split the gap, optionally the denoising check on a burst) and
+`g2r_jax.downstream.write_report`.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import os
 import sys
 from pathlib import Path
 
@@ -19,8 +18,10 @@ from g2r_jax.cli.common import (add_common_flags, command_parser, one_line, outp
 EXAMPLES = """  g2r-downstream --measured my_camera_dngs/ --cg renders/ --report downstream/
   g2r-downstream --measured my_camera_dngs/ --cg renders/ --profile my_camera.json --report downstream/ --seeds 3
   g2r-downstream --measured dngs/ --cg renders/ --burst burst_dngs/ --report downstream/
+  g2r-downstream --burst burst_dngs/ --report denoising/
 """
 DEFAULT_ESTIMATORS = "cnn,histogram"
+LIMITS = {"seeds": (1, 100), "n": (50, 100_000), "folds": (2, 50), "denoiser_steps": (1, 1_000_000)}
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -29,20 +30,24 @@ def _parser() -> argparse.ArgumentParser:
         "Train illuminant estimators on synthetic RAW made from your CG images (g2r_jax and UPI), on "
         "your real DNGs (cross-validated) and on controls; test them on your real DNGs (labelled by "
         "their AsShotNeutral, the camera's own white balance) and say how much of the gap to real "
-        "training is the profile and how much the CG content.", EXAMPLES)
+        "training is the profile and how much the CG content. With --burst, also (or only) the "
+        "denoising check.", EXAMPLES)
     required = required_group(parser)
-    required.add_argument("--measured", required=True, nargs="+", metavar="DNG_DIR",
-                          help="folders or files of real DNGs of one camera (at least 12 usable files)")
-    required.add_argument("--cg", required=True, nargs="+", metavar="IMAGE_DIR",
-                          help="folders or files of CG images (PNG, JPEG, TIFF sRGB; EXR linear), each at least "
-                               "128 pixels on its shorter side")
     required.add_argument("--report", required=True, type=Path, metavar="DIR",
-                          help="folder for report.json, report.md and the plot (created if missing)")
+                          help="folder for report.json, report.md and the plot (created if missing; not an input "
+                               "folder)")
+    parser.add_argument("--measured", nargs="+", metavar="DNG_DIR",
+                        help="folders or files of real DNGs of one camera, shot under several lights (at least 12 "
+                             "usable files); needs --cg")
+    parser.add_argument("--cg", nargs="+", metavar="IMAGE_DIR",
+                        help="folders or files of CG images (PNG, JPEG, TIFF sRGB; EXR linear), each at least "
+                             "128 pixels on its shorter side")
     parser.add_argument("--profile", metavar="NAME|FILE",
-                        help="the camera's sensor profile (default: fitted from the measured DNGs as "
-                             "g2r-fit-profile would; its lights are refitted per fold)")
+                        help="the camera's sensor profile (default: fitted from the measured DNGs, or the burst's, "
+                             "as g2r-fit-profile would; its lights are refitted per fold)")
     parser.add_argument("--burst", metavar="DNG_DIR",
-                        help="also the denoising check: a folder of DNGs of one static scene (>= 3 frames)")
+                        help="the denoising check: a folder of DNGs of one static scene (>= 3 frames); alone, "
+                             "or with --measured and --cg")
     parser.add_argument("--denoiser-steps", type=int, default=300, metavar="STEPS",
                         help="Adam steps per denoiser training of the burst check")
     parser.add_argument("--estimators", default=DEFAULT_ESTIMATORS,
@@ -50,161 +55,117 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--seeds", type=int, default=2, help="repetitions with new synthetic sets")
     parser.add_argument("--n", type=int, default=600, help="synthetic training images per set")
     parser.add_argument("--folds", type=int, default=3, help="cross-validation folds of the real files")
+    parser.add_argument("--max-megapixels", type=float, default=100.0, metavar="MPX",
+                        help="refuse CG images larger than this (0: no limit)")
+    parser.add_argument("--dry-run", action="store_true",
+                        help="read and check every input and the profile, say what would be used and left out, "
+                             "train nothing and write no report")
     add_common_flags(parser)
     return parser
 
 
-def check_arguments(args) -> str | None:
-    """The first problem found without reading any file (None when there is none)."""
-    from g2r_jax.downstream.estimators import ESTIMATORS
-    from g2r_jax.profile.shipped import UnknownProfile, profile_path
+def _range_problem(args) -> str | None:
+    for name, (low, high) in LIMITS.items():
+        value = getattr(args, name)
+        if not low <= value <= high:
+            shown = str(value) if len(str(value)) <= 20 else f"{str(value)[:12]}... ({len(str(value))} digits)"
+            return f"--{name.replace('_', '-')} {shown}: must be from {low} to {high}"
+    if not 0 <= args.max_megapixels < float("inf"):
+        return f"--max-megapixels {args.max_megapixels}: must be a number >= 0 (0: no limit)"
+    return None
 
-    for option, items in (("--measured", args.measured), ("--cg", args.cg)):
+
+def _inputs_problem(args) -> str | None:
+    if not args.measured and not args.burst:
+        return "nothing to check: give --measured with --cg (the colour check), --burst (the denoising check), or both"
+    if args.measured and not args.cg:
+        return "--measured needs --cg: the colour check trains on synthetic RAW of CG images"
+    for option, items in (("--measured", args.measured or ()), ("--cg", args.cg or ())):
         for item in items:
             if not Path(item).exists():
                 return f"{option} {item}: no such folder or file"
     if args.burst is not None and not Path(args.burst).is_dir():
         return f"--burst {args.burst}: no such folder"
+    return None
+
+
+def report_folder_problem(args) -> str | None:
+    """Why the report cannot go to `args.report`: empty, an input folder or inside one, or not
+    writable (tried by creating and removing a probe file, and any folders made for it)."""
+    import tempfile
+
+    if not str(args.report).strip():
+        return "--report '': empty; give the folder for the report"
+    report = Path(os.path.abspath(args.report))
+    inputs = [("--measured", m) for m in args.measured or ()] + [("--cg", c) for c in args.cg or ()]
+    inputs += [("--burst", args.burst)] if args.burst else []
+    for option, item in inputs:
+        folder = Path(os.path.abspath(item))
+        if Path(item).is_dir() and (report == folder or folder in report.parents):
+            return (f"--report {args.report}: is the input folder {option} {item}" if report == folder else
+                    f"--report {args.report}: is inside the input folder {option} {item}") + "; give another folder"
+    problem = output_folder_problem("--report", args.report)
+    if problem or args.dry_run:
+        return problem
+    made = [p for p in [report, *report.parents] if not p.exists()]
+    try:
+        report.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=report, prefix=".g2r-probe-"):
+            pass
+    except OSError as error:
+        return f"--report {args.report}: cannot write there ({error.strerror or error})"
+    finally:
+        for folder in made:   # the deepest first: leave no empty folder behind
+            try:
+                folder.rmdir()
+            except FileNotFoundError:
+                continue
+            except OSError:
+                break
+    return None
+
+
+def check_arguments(args) -> str | None:
+    """The first problem found without reading any input file (None when there is none)."""
+    from g2r_jax.downstream.estimators import ESTIMATORS
+    from g2r_jax.profile.shipped import UnknownProfile, profile_path
+
+    problem = _inputs_problem(args) or _range_problem(args)
+    if problem:
+        return problem
     unknown = [e for e in args.estimators.split(",") if e not in ESTIMATORS]
     if unknown or not args.estimators:
         return f"--estimators {args.estimators}: expected some of {', '.join(ESTIMATORS)}"
-    if args.seeds < 1 or args.n < 50 or args.folds < 2 or args.denoiser_steps < 1:
-        return "--seeds must be >= 1, --n >= 50, --folds >= 2 and --denoiser-steps >= 1"
     if args.profile is not None:
         try:
             profile_path(args.profile)
         except UnknownProfile as error:
             return f"--profile {error}"
-    return output_folder_problem("--report", args.report)
-
-
-def read_cg_images(paths, say) -> tuple[list, list, list]:
-    """Linear float32 CG images, their paths, and the (path, reason) of those that cannot be used."""
-    import numpy as np
-
-    from g2r_jax.colour.conversions import srgb_to_linear
-    from g2r_jax.io.dng_info import DngError
-    from g2r_jax.io.images import list_inputs, read_image
-
-    images, used, skipped = [], [], []
-    for path in list_inputs(paths):
-        try:
-            values, encoding = read_image(path)
-        except DngError as error:
-            skipped.append((str(path), error.problem))
-            continue
-        if min(values.shape[:2]) < 128:
-            skipped.append((str(path), f"{values.shape[0]} x {values.shape[1]} is smaller than 128 pixels"))
-            continue
-        if encoding == "srgb":
-            linear = np.asarray(srgb_to_linear(values), np.float32)
-        else:   # scene-linear EXR: its 99.5th percentile is taken as the render's white
-            linear = values / max(float(np.percentile(values.mean(-1), 99.5)), 1e-6)
-        images.append(np.clip(linear, 0.0, 1.0).astype(np.float32))
-        used.append(path)
-    if say:
-        say(f"{len(images)} CG image(s) read")
-    return images, used, skipped
+    return report_folder_problem(args)
 
 
 def _run(args) -> int:
-    from g2r_jax.downstream import content, experiment, real_sets, report
-    from g2r_jax.downstream.training_sets import cg_views, g2r_set, real_to_linear_srgb
-    from g2r_jax.io.atomic import atomic_write_bytes
-    from g2r_jax.io.dng_info import DngError
+    from g2r_jax.downstream import run_check, write_report
 
     say = None if args.quiet else (lambda message: print(f"g2r-downstream: {message}", file=sys.stderr))
-    problems = []
 
     def bad(path, reason):
-        problems.append((path, reason))
         print(f"g2r-downstream: error: {one_line(f'{path}: {reason}')}", file=sys.stderr)
 
-    real, skipped = real_sets.load_dng_folder(args.measured)
-    for path, reason in skipped:
-        bad(path, reason)
-    needed = max(12, 4 * args.folds)
-    if len(real.images) < needed:
-        raise DngError(" ".join(args.measured), f"{len(real.images)} usable DNG file(s); the check needs at least "
-                                                f"{needed} (cross-validated real training)")
-    if say:
-        say(f"{len(real.images)} real DNG(s) of {real.name!r}, labelled by their {real_sets.DNG_LABEL}")
-    cg, cg_paths, skipped = read_cg_images(args.cg, say)
-    for path, reason in skipped:
-        bad(path, reason)
-    if not cg:
-        raise DngError(" ".join(args.cg), "no usable CG image")
-    burst = None
-    if args.burst:   # read first: a burst that cannot be used is refused before minutes of training
-        from g2r_jax.downstream.bursts import read_burst
-
-        burst = read_burst(args.burst)
-        for name, reason in burst.skipped:
-            bad(name, reason)
-    profile = _profile(args, real)
-    rows = [r for r in experiment.DEFAULT_ROWS if args.profile is not None or r != "shipped"]
-    estimators = tuple(args.estimators.split(","))
-    result = experiment.illuminant_experiment(real, profile, cg, rows=rows, estimators=estimators,
-                                              seeds=tuple(range(args.seeds)), n=args.n, folds=args.folds, progress=say)
-    fitted = experiment.fitted_illuminants(profile, real.illuminants)
-    synthetic = g2r_set(cg_views(cg, min(args.n, 300), 0), fitted, 0)
-    round_trip = g2r_set(real_to_linear_srgb(real.images, real.illuminants, profile), profile, 0,
-                         neutrals=real.illuminants)
-    differences = content.compare(synthetic, (real.images, real.illuminants), round_trip)
-    document = {"camera": real.name, "label": real.label, "files": list(real.files), **result.to_dict(),
-                "decomposition": {e: report.decomposition(result, e) for e in estimators},
-                "content": differences}
-    sentences = [report.sentence(result, e, differences) for e in estimators]
-    denoised = None
-    if burst is not None:
-        from g2r_jax.downstream import denoising
-
-        denoised = denoising.denoising_benchmark(burst, profile, cg_paths, seeds=tuple(range(args.seeds)),
-                                                 steps=args.denoiser_steps, progress=say)
-        document["denoising"] = {"psnr": {f"{r}/{c}": v for (r, c), v in denoised.psnr.items()},
-                                 "noisy_psnr": denoised.noisy_psnr, "noise": denoised.noise,
-                                 "frames": list(denoised.frames), "iso": denoised.iso}
-        sentences.append(denoising_sentence(denoised))
-    document["problems"] = [{"path": p, "reason": r} for p, r in problems]
-    folder = Path(args.report)
-    folder.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(folder / "report.json", (json.dumps(document, indent=1, default=float) + "\n").encode())
-    markdown = [f"# Downstream check: {real.name}", "", f"Real files: {len(real.images)}; labels: {real.label}.", "",
-                *sentences, "", report.table(result), "", "## What differs in the CG content", "",
-                report.content_table(differences), ""]
-    if denoised is not None:
-        markdown += ["## Denoising on the burst", "", denoised.summary(), ""]
-    atomic_write_bytes(folder / "report.md", "\n".join(markdown).encode())
-    plotted = report.plot(result, folder / "errors.png")
-    print("Result: " + sentences[0])
-    print(f"report: {folder / 'report.md'} (and report.json{', errors.png' if plotted else ''})")
-    if problems:
-        print(f"g2r-downstream: {len(problems)} file(s) left out (see above)", file=sys.stderr)
-    return 1 if problems else 0
-
-
-def denoising_sentence(result) -> str:
-    """One sentence: the denoiser trained with g2r_jax's noise on the CG content against UPI's and
-    real pairs, on the burst's held-out frames."""
-    import numpy as np
-
-    mean = {key: float(np.mean(v)) for key, v in result.psnr.items() if len(v)}
-    parts = [f"{label} {mean[key]:.2f} dB" for key, label in
-             ((("shipped", "cg"), "g2r_jax noise on the CG images"), (("upi", "cg"), "UPI noise"),
-              (("real", "scene"), "real pairs of the burst")) if key in mean]
-    return (f"denoising the burst's held-out frames (noisy {result.noisy_psnr:.2f} dB): " + ", ".join(parts) + ".")
-
-
-def _profile(args, real):
-    """The given profile, or one fitted from the measured DNGs' tags (colour, levels, noise)."""
-    from g2r_jax.io.dng_read import read_dng_info
-    from g2r_jax.profile.fitting import fit_profile
-    from g2r_jax.profile.schema import load_profile
-
-    if args.profile is not None:
-        return load_profile(args.profile)
-    infos = [read_dng_info(path) for path in real.files]
-    return fit_profile(infos, name=real.name or "measured", illuminant_model="prior")
+    result = run_check(args.measured or (), args.cg or (), burst=args.burst, profile=args.profile,
+                       estimators=tuple(args.estimators.split(",")), seeds=args.seeds, n=args.n, folds=args.folds,
+                       denoiser_steps=args.denoiser_steps, dry_run=args.dry_run, progress=say, on_problem=bad,
+                       max_pixels=int(args.max_megapixels * 1e6) if args.max_megapixels > 0 else None)
+    if args.quiet:   # notes (files with the same pixels) matter for the result: said even when quiet
+        for note in result.notes:
+            print(f"g2r-downstream: note: {one_line(note)}", file=sys.stderr)
+    print("Result: " + result.sentences[0])
+    if not args.dry_run:
+        written = write_report(result, args.report)
+        print(f"report: {written[1]} (and {', '.join(p.name for p in written if p != written[1])})")
+    if result.problems:
+        print(f"g2r-downstream: {len(result.problems)} file(s) left out (see above)", file=sys.stderr)
+    return result.status
 
 
 def main(argv=None) -> int:

@@ -1,8 +1,9 @@
 """The paper's illuminant-estimation experiment on real images (Graphics2RAW, Seo et al. ICCV 2023,
 Table 2 and supplement Tables S1, S4, S6), with controls that split the gap to real training.
 
-Protocol: the real set's images are split into `folds` folds (a seeded permutation, image j in
-fold j mod k); for each fold, every row makes a training set, one estimator per row is trained on
+Protocol: the real set's images are split into `folds` folds (`g2r_jax.measure.folds_of`: a
+seeded permutation, image j in fold j mod k; files with the same pixels, `RealSet.groups`, in one
+fold); for each fold, every row makes a training set, one estimator per row is trained on
 it and tested on the fold's real images (angular error, degrees). Synthetic rows make `n`
 training images from CG views; real controls repeat the training images up to `n`.
 
@@ -34,9 +35,9 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from g2r_jax.downstream import metrics as _metrics
 from g2r_jax.downstream.real_sets import RealSet
 from g2r_jax.downstream import training_sets as _sets
+from g2r_jax.measure import angular_error_degrees, error_summary, folds_of
 
 ROWS = {
     "upi": "UPI (Brooks et al. 2019)",
@@ -70,7 +71,7 @@ class ExperimentResult:
     def summary(self, row: str, estimator: str) -> dict:
         """Error statistics pooled over seeds, plus the spread of the seeds' means."""
         per_seed = self.errors[(row, estimator)]
-        pooled = _metrics.error_summary(np.concatenate(per_seed))
+        pooled = error_summary(np.concatenate(per_seed))
         means = [float(np.mean(e)) for e in per_seed]
         return {**pooled, "seed_means": means, "seed_min": min(means), "seed_max": max(means)}
 
@@ -78,12 +79,6 @@ class ExperimentResult:
         return {"camera": self.camera, "rows": list(self.rows), "estimators": list(self.estimators),
                 "seeds": list(self.seeds), "seconds": self.seconds, "notes": self.notes,
                 "summary": {f"{r}/{e}": self.summary(r, e) for r in self.rows for e in self.estimators}}
-
-
-def fold_indices(n: int, k: int = 3, seed: int = 0) -> list[np.ndarray]:
-    """k folds of range(n): a seeded permutation, its j-th element in fold j mod k."""
-    permutation = np.random.default_rng(seed).permutation(n)
-    return [np.sort(permutation[i::k]) for i in range(k)]
 
 
 def fitted_illuminants(profile, illuminants: np.ndarray, kind: str = "auto", seed: int = 0):
@@ -207,7 +202,7 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
     sets = _Sets(real, profile, linear, n=n, illuminant_model=illuminant_model, other=other,
                  single_light=single_light, lights=lights)
     errors = {(r, e): [] for r in rows for e in estimators}
-    fold_sets = fold_indices(len(real.images), folds)
+    fold_sets = folds_of(len(real.images), folds, 0, groups=real.groups)
     for seed in seeds:
         per_fold = {key: [] for key in errors}
         for fold, test in enumerate(fold_sets):
@@ -217,7 +212,7 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
                 for estimator in estimators:
                     predict = train_estimator(estimator, images, lights, seed=1000 * seed + fold)
                     per_fold[(row, estimator)].append(
-                        _metrics.angular_error_degrees(predict(real.images[test]), real.illuminants[test]))
+                        angular_error_degrees(predict(real.images[test]), real.illuminants[test]))
             say(f"{real.name}: seed {seed}, fold {fold + 1}/{folds} done ({time.perf_counter() - start:.0f} s)")
         for key, parts in per_fold.items():
             errors[key].append(np.concatenate(parts))

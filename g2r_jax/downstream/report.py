@@ -1,8 +1,12 @@
 """The downstream result in words, tables and a plot: the rows side by side, the gap to real
-training split into the profile's share and the CG content's, and what differs in the content."""
+training split into the profile's share and the CG content's, and what differs in the content;
+`Report`, what `g2r_jax.downstream.run_check` returns, and `write_report`, its files."""
 
 from __future__ import annotations
 
+import dataclasses
+import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -119,3 +123,69 @@ def plot(result: ExperimentResult, path) -> bool:
     finally:
         plt.close(fig)
     return True
+
+
+@dataclasses.dataclass
+class Report:
+    """One downstream check. `camera`; `sentences`: the result in words, one per estimator (and
+    one for the burst); `document`: everything as JSON-able data (report.json); `markdown`: the
+    report page (report.md); `result`: the `ExperimentResult` (None without a colour check or in
+    a dry run); `denoising`: the burst check's result or None; `problems`: (path, reason) of each
+    input left out; `notes`: lines a user should know (files with the same pixels)."""
+
+    camera: str
+    sentences: list
+    document: dict
+    markdown: str
+    result: ExperimentResult | None = None
+    denoising: object = None
+    problems: list = dataclasses.field(default_factory=list)
+    notes: list = dataclasses.field(default_factory=list)
+
+    @property
+    def status(self) -> int:
+        """The command's exit status: 1 when some input was left out, else 0."""
+        return 1 if self.problems else 0
+
+
+def _finite(value):
+    """`value` with every non-finite float as None (JSON has no NaN)."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.ndarray):
+        return _finite(value.tolist())
+    return value
+
+
+def write_report(report: Report, folder) -> list[Path]:
+    """Write report.json, report.md and (with a colour check and matplotlib) errors.png into
+    `folder` (created if missing), each atomically.
+
+    **Arguments:** `report`: a `Report`; `folder`: a path. **Returns:** the paths written.
+    """
+    from g2r_jax.io.atomic import atomic_write_bytes
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [folder / "report.json", folder / "report.md"]
+    atomic_write_bytes(written[0], (json.dumps(_finite(report.document), indent=1) + "\n").encode())
+    atomic_write_bytes(written[1], report.markdown.encode())
+    if report.result is not None and plot(report.result, folder / "errors.png"):
+        written.append(folder / "errors.png")
+    return written
+
+
+def denoising_sentence(result) -> str:
+    """One sentence: the denoiser trained with g2r_jax's noise on the CG images against UPI's and
+    real pairs, on the burst's held-out frames."""
+    mean = {key: float(np.mean(v)) for key, v in result.psnr.items() if len(v)}
+    parts = [f"{label} {mean[key]:.2f} dB" for key, label in
+             ((("shipped", "cg"), "g2r_jax noise on the CG images"), (("upi", "cg"), "UPI noise"),
+              (("real", "scene"), "real pairs of the burst")) if key in mean]
+    return f"denoising the burst's held-out frames (noisy {result.noisy_psnr:.2f} dB): " + ", ".join(parts) + "."

@@ -1,0 +1,157 @@
+"""The downstream check as a library call: does a network trained on g2r_jax RAW of your CG images
+work on your camera? `run_check` reads and vets the inputs (`downstream.inputs`), trains the
+illuminant estimators of `downstream.experiment` on every row's training set and tests them on
+the real DNGs (labelled by their AsShotNeutral), compares the CG content with the real files
+(`downstream.content`), optionally runs the denoising check on a burst
+(`downstream.denoising`), and returns a `report.Report`; `report.write_report` writes it.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Optional, Sequence
+
+from g2r_jax.downstream import content, experiment, report
+from g2r_jax.downstream.inputs import Inputs, read_inputs
+from g2r_jax.io.image_headers import DEFAULT_MAX_PIXELS
+
+DEFAULT_ESTIMATORS = ("cnn", "histogram")
+
+
+def default_rows(profile_given: bool) -> tuple:
+    """The experiment's rows: every default row, 'shipped' only when a profile was given (a
+    fitted profile has no light of its own to test). Extra rows (`experiment.ROWS`) are passed
+    to `run_check(rows=...)`."""
+    return tuple(r for r in experiment.DEFAULT_ROWS if profile_given or r != "shipped")
+
+
+def camera_profile(profile, inputs: Inputs):
+    """`profile` (a SensorProfile, a shipped name or a file) loaded, or one fitted from the real
+    DNGs' tags as `g2r-fit-profile` would (from the burst's frames without real DNGs)."""
+    from g2r_jax.io.dng_read import read_dng_info
+    from g2r_jax.profile.fitting import fit_profile
+    from g2r_jax.profile.schema import SensorProfile, load_profile
+
+    if isinstance(profile, SensorProfile):
+        return profile
+    if profile is not None:
+        return load_profile(profile)
+    if inputs.real is not None:
+        return fit_profile([read_dng_info(path) for path in inputs.real.files], name=inputs.real.name or "measured",
+                           illuminant_model="prior")
+    return fit_profile(list(inputs.burst.infos), name="burst", illuminant_model="prior")
+
+
+def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds, say) -> tuple:
+    """(ExperimentResult, JSON part, sentences, markdown lines) of the colour check."""
+    from g2r_jax.downstream.training_sets import cg_views, g2r_set, real_to_linear_srgb
+
+    real = inputs.real
+    result = experiment.illuminant_experiment(real, profile, inputs.cg, rows=rows, estimators=estimators,
+                                              seeds=seeds, n=n, folds=folds, progress=say)
+    fitted = experiment.fitted_illuminants(profile, real.illuminants)
+    synthetic = g2r_set(cg_views(inputs.cg, min(n, 300), 0), fitted, 0)
+    round_trip = g2r_set(real_to_linear_srgb(real.images, real.illuminants, profile), profile, 0,
+                         neutrals=real.illuminants)
+    differences = content.compare(synthetic, (real.images, real.illuminants), round_trip)
+    document = {**result.to_dict(), "decomposition": {e: report.decomposition(result, e) for e in estimators},
+                "content": differences}
+    sentences = [report.sentence(result, e, differences) for e in estimators]
+    markdown = [report.table(result), "", "## What differs in the CG content", "", report.content_table(differences), ""]
+    return result, document, sentences, markdown
+
+
+def _burst_check(inputs: Inputs, profile, *, seeds, steps, say) -> tuple:
+    """(DenoisingResult, JSON part, sentence, markdown lines) of the burst's denoising check."""
+    from g2r_jax.downstream import denoising
+
+    contents = ("cg", "scene") if inputs.cg_paths else ("scene",)
+    result = denoising.denoising_benchmark(inputs.burst, profile, inputs.cg_paths, contents=contents, seeds=seeds,
+                                           steps=steps, progress=say)
+    document = {"psnr": {f"{r}/{c}": v for (r, c), v in result.psnr.items()}, "noisy_psnr": result.noisy_psnr,
+                "noise": result.noise, "frames": list(result.frames), "iso": result.iso}
+    return result, document, report.denoising_sentence(result), ["## Denoising on the burst", "", result.summary(), ""]
+
+
+def _inputs_document(inputs: Inputs) -> dict:
+    real = inputs.real
+    return {"camera": real.name if real is not None else "", "label": real.label if real is not None else None,
+            "files": list(real.files) if real is not None else [], "cg_images": [str(p) for p in inputs.cg_paths],
+            "burst_frames": list(inputs.burst.names) if inputs.burst is not None else [],
+            "notes": list(inputs.notes), "problems": [{"path": p, "reason": r} for p, r in inputs.problems]}
+
+
+def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile=None,
+              estimators: Sequence[str] = DEFAULT_ESTIMATORS, rows: Optional[Sequence[str]] = None, seeds: int = 2,
+              n: int = 600, folds: int = 3, denoiser_steps: int = 300, max_pixels: Optional[int] = DEFAULT_MAX_PIXELS,
+              dry_run: bool = False, progress: Optional[Callable[[str], None]] = None,
+              on_problem: Optional[Callable[[str, str], None]] = None) -> report.Report:
+    """Run the downstream check (see the module docstring).
+
+    **Arguments:** `measured`: folders or files of the camera's real DNGs (the colour check;
+    needs `cg`; may be empty with a `burst`); `cg`: folders or files of CG images; `burst`: a
+    folder of DNGs of one static scene (the denoising check) or None; `profile`: the camera's
+    `SensorProfile`, a shipped name or a profile file (None: fitted from the DNGs' tags);
+    `estimators`: some of `estimators.ESTIMATORS`; `rows`: the colour check's training sets
+    (`experiment.ROWS`; None: `default_rows`); `seeds`: repetitions with new synthetic sets;
+    `n`: synthetic training images per set; `folds`: cross-validation folds of the real files;
+    `denoiser_steps`: Adam steps per denoiser; `max_pixels`: the largest CG image read;
+    `dry_run`: read and vet every input and the profile, train nothing; `progress`: a callable
+    taking one line of text; `on_problem(path, reason)`: called as each input is left out.
+
+    **Returns:** a `report.Report` (its `status` is the command's exit status). **Raises:**
+    `DngError` naming the folder when a check cannot run on its inputs, ValueError for options
+    that do not fit together.
+    """
+    if not measured and burst is None:
+        raise ValueError("nothing to check: give real DNGs (measured) with CG images, or a burst, or both")
+    if measured and not cg:
+        raise ValueError("the colour check needs CG images (cg) beside the real DNGs")
+    say = progress or (lambda line: None)
+    inputs = read_inputs(measured, cg, burst, folds=folds, max_pixels=max_pixels, on_problem=on_problem,
+                         progress=progress)
+    for note in inputs.notes:
+        say(note)
+    sensor = camera_profile(profile, inputs)
+    document, sentences = _inputs_document(inputs), []
+    title = inputs.real.name if inputs.real is not None else (inputs.burst.names[0] if inputs.burst else "")
+    markdown = [f"# Downstream check: {title}", ""]
+    if inputs.real is not None:
+        markdown += [f"Real files: {len(inputs.real.images)}; labels: {inputs.real.label}.", ""]
+    if dry_run:
+        sentences.append(_dry_run_sentence(inputs))
+        return report.Report(camera=document["camera"], sentences=sentences, document={**document, "dry_run": True},
+                             markdown="\n".join(markdown + sentences + [""]), problems=inputs.problems,
+                             notes=inputs.notes)
+    result = denoised = None
+    body = []
+    if inputs.real is not None:
+        rows = default_rows(profile is not None) if rows is None else tuple(rows)
+        result, part, said, lines = _colour_check(inputs, sensor, rows=rows, estimators=tuple(estimators),
+                                                  seeds=tuple(range(seeds)), n=n, folds=folds, say=say)
+        document.update(part)
+        sentences += said
+        body += lines
+    if inputs.burst is not None:
+        denoised, part, said, lines = _burst_check(inputs, sensor, seeds=tuple(range(seeds)), steps=denoiser_steps,
+                                                   say=say)
+        document["denoising"] = part
+        sentences.append(said)
+        body += lines
+    markdown += [*sentences, "", *body]
+    return report.Report(camera=document["camera"], sentences=sentences, document=document,
+                         markdown="\n".join(markdown), result=result, denoising=denoised, problems=inputs.problems,
+                         notes=inputs.notes)
+
+
+def _dry_run_sentence(inputs: Inputs) -> str:
+    parts = []
+    if inputs.real is not None:
+        from g2r_jax.downstream.real_sets import distinct_lights
+
+        parts.append(f"{len(inputs.real.images)} real DNG(s) of {inputs.real.name!r} under "
+                     f"{len(distinct_lights(inputs.real.illuminants))} distinct light(s)")
+    if inputs.cg:
+        parts.append(f"{len(inputs.cg)} CG image(s)")
+    if inputs.burst is not None:
+        parts.append(f"a burst of {inputs.burst.n} frames")
+    return (f"dry run: would use {', '.join(parts)}; {len(inputs.problems)} input(s) left out; nothing trained.")
