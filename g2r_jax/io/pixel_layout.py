@@ -211,6 +211,9 @@ def _missing_warning(layout: _Layout, file_size: int) -> Optional[str]:
     ends = [offset + count for offset, count in zip(layout.offsets, layout.counts)]
     if ends and max(ends) > file_size:
         return f"raw image data runs to byte {max(ends)} but the file has {file_size} bytes: file truncated"
+    if layout.kind == "tiles" and layout.segment_width > layout.width:
+        return (f"TileWidth {layout.segment_width} is wider than ImageWidth {layout.width}: LibRaw would "
+                "wrap each tile's rows at the image width and scramble the pixels")
     total, samples = sum(layout.counts), layout.width * layout.height * layout.samples * layout.planes
     if layout.compression == _LOSSLESS_JPEG and total < samples // 8:
         return (f"compressed raw data has {total} bytes, too few for {layout.width}x{layout.height} samples "
