@@ -43,6 +43,7 @@ from g2r_jax.colour import charts as _charts  # noqa: E402
 from g2r_jax.colour import conversions as _colour  # noqa: E402
 from g2r_jax.colour import chart_fit as colour_fit  # noqa: E402
 from g2r_jax.downstream.upi import XYZ_TO_CAMERAS  # noqa: E402
+from g2r_jax.measure import angular_error_degrees  # noqa: E402
 
 TRAIN_PER_FOLD = 2000
 ROWS = ("UPI (Brooks et al. 2019)", "published recipe", "g2r_jax as shipped", "g2r_jax after colour refit", "Real")
@@ -133,7 +134,7 @@ def run(charts_path, profile_path, *, train_per_fold=TRAIN_PER_FOLD, seed=0, pro
         for row, (patches, illuminant) in training.items():
             estimator = PatchwiseEstimator().fit(patches, illuminant)
             estimates[row][folds == fold] = estimator.predict(test.patches)
-    errors = {row: _charts.angular_error_degrees(estimates[row], charts.illuminant) for row in ROWS}
+    errors = {row: angular_error_degrees(estimates[row], charts.illuminant, invalid="nan") for row in ROWS}
     return {"errors": errors, "statistics": {row: statistics(e) for row, e in errors.items()},
             "n_images": len(charts), "train_per_fold": train_per_fold}
 

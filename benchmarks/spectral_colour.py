@@ -136,14 +136,16 @@ def section_gehler(charts_dir=None):
     from g2r_jax.colour import conversions as _colour
     from g2r_jax.colour import dng_model as _dng
     from g2r_jax.colour.dng_model import DngColourModel
+    from g2r_jax.colour.charts import chart_linear_srgb
     from g2r_jax.colour.spectral import accuracy
     from g2r_jax.colour.spectral.estimate import estimate_sensitivities
+    from g2r_jax.measure import angular_error_degrees
     from g2r_jax.colour.spectral.illuminant_spectra import choose_lamp_families
 
     sys.path.insert(0, str(ROOT / "benchmarks"))
     charts = _gehler_shi(charts_dir)
     cameras = json.loads((DATA / "cameras" / "gehler_shi_cameras.json").read_text())
-    srgb = accuracy.colour_checker_srgb()
+    srgb = chart_linear_srgb()
     reflectances = {"spectral": accuracy.mallett_yuksel_reflectances(srgb),
                     "jakob2019": accuracy.jakob_hanika_lattice_reflectances(srgb)}
     out = {}
@@ -172,7 +174,7 @@ def section_gehler(charts_dir=None):
             for method, r in reflectances.items():
                 predictions[method] = accuracy.predict_spectral(r, light, estimate)
             for method, predicted in predictions.items():
-                errors[method].append(accuracy.angular_error_degrees(predicted[valid], recorded[valid]).mean())
+                errors[method].append(angular_error_degrees(predicted[valid], recorded[valid]).mean())
         out[camera] = {m: {"images": len(e), "mean": float(np.mean(e)), "median": float(np.median(e)),
                            "better_than_matrix": float(np.mean(np.array(e) < np.array(errors["matrix"])))}
                        for m, e in errors.items()}

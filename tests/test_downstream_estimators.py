@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from g2r_jax.downstream import estimators as est
-from g2r_jax.downstream.metrics import angular_error_degrees, error_summary
+from g2r_jax.measure import angular_error_degrees, error_summary
 
 # ---------------------------------------------------------------- metrics
 
@@ -120,17 +120,17 @@ def test_estimator_is_deterministic_for_a_seed(kind, scenes):
 def test_cnn_convolution_is_a_same_convolution():
     import jax
 
-    params = est.cnn_init(0)
+    model = est.cnn_init(0)
     x = np.random.default_rng(1).uniform(size=(2, 12, 12, 7)).astype(np.float32)
 
     @jax.jit
-    def check(params, x):
-        reference = jax.lax.conv_general_dilated(x, params["conv2"]["w"], (1, 1), "SAME",
-                                                 dimension_numbers=("NHWC", "HWIO", "NHWC")) + params["conv2"]["b"]
-        return est._conv(x, params["conv2"]), reference, est.cnn_local_estimates(params, x[..., :3] + 1.0)
+    def check(model, x):
+        reference = jax.lax.conv_general_dilated(x, model.conv2.weight, (1, 1), "SAME",
+                                                 dimension_numbers=("NHWC", "HWIO", "NHWC")) + model.conv2.bias
+        return model.conv2(x), reference, model.local_estimates(x[..., :3] + 1.0)
 
-    ours, reference, local = check(params, x)
-    assert est.count_parameters(params) == 1137          # 3*7*9+7 + 7*14*9+14 + 14*3+3: Gong's 1.1K
+    ours, reference, local = check(model, x)
+    assert est.count_parameters(model) == 1137          # 3*7*9+7 + 7*14*9+14 + 14*3+3: Gong's 1.1K
     np.testing.assert_allclose(ours, reference, atol=1e-5)
     assert local.shape == (2, 3, 3, 3) and bool((local >= 0).all())
 

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from g2r_jax.audit.robust import mad_sd, trimmed_variance
+from g2r_jax.measure import mad_sd, trimmed_variance
 
 DARK_FRAME_MAX = 0.05        # a structureless frame this close to the tag (fraction of range) is a dark frame
 STRUCTURE_RATIO = 3.0        # block-mean spread at most this many times what pixel noise gives

@@ -10,11 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def folds_of(n: int, k: int, seed: int) -> list[np.ndarray]:
-    """k disjoint held-out index sets covering range(n), shuffled by `seed`."""
-    order = np.random.default_rng(seed).permutation(n)
-    return [np.sort(order[i::k]) for i in range(k)]
+from g2r_jax.measure import folds_of
 
 
 def cross_validate(cause, measured: list, simulated: list, profile, simulate_stats, *,

@@ -14,8 +14,9 @@ import functools
 
 import numpy as np
 
-from g2r_jax.audit.robust import MAD_TO_STD as _MAD_TO_STD
-from g2r_jax.audit.robust import trimmed_variance as _robust_variance
+from g2r_jax.measure import mad_sd
+from g2r_jax.measure.robust import MAD_TO_STD as _MAD_TO_STD
+from g2r_jax.measure.robust import trimmed_variance as _robust_variance
 from g2r_jax.sensor.noise.estimation import to_normalised_planes
 
 
@@ -102,8 +103,7 @@ def banding(planes) -> np.ndarray:
             diff = np.diff(plane[:, ::step], axis=0)
             half = diff.shape[1] // 2
             a, b = np.median(diff[:, :half], axis=1), np.median(diff[:, half:], axis=1)
-            s = lambda v: _MAD_TO_STD * np.median(np.abs(v - np.median(v)))
-            values.append((s(a + b) ** 2 - s(a - b) ** 2) / 8.0)
+            values.append((mad_sd(a + b) ** 2 - mad_sd(a - b) ** 2) / 8.0)
         result.append(np.mean(values))
     return np.asarray(result)
 

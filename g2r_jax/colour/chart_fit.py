@@ -35,6 +35,7 @@ import optimistix as optx
 from g2r_jax.colour import charts as _charts
 from g2r_jax.colour import conversions as _colour
 from g2r_jax.colour import dng_model as _dng
+from g2r_jax.measure import angular_error_degrees
 from g2r_jax.runtime.x64 import enable_x64
 from g2r_jax.colour.camera_rgb import matrix_srgb_to_white_balanced_camera
 
@@ -121,7 +122,7 @@ def simulate_patches(profile, neutrals, chart_srgb=None, *, recipe: str = "dng",
 
 def patch_errors(predicted, charts: _charts.ChartSet) -> np.ndarray:
     """Angular error (N, 24) in degrees between predicted and measured patch RGB (NaN where unusable)."""
-    return _charts.angular_error_degrees(predicted, charts.patches)
+    return angular_error_degrees(predicted, charts.patches, invalid="nan")
 
 
 def summarise(errors) -> dict:

@@ -223,12 +223,3 @@ def chart_srgb() -> np.ndarray:
     from g2r_jax.colour.conversions import linear_to_srgb
 
     return np.asarray(linear_to_srgb(np.clip(chart_linear_srgb(), 0.0, 1.0)), np.float64)
-
-
-def angular_error_degrees(a, b) -> np.ndarray:
-    """Angle in degrees between RGB vectors a and b (..., 3); NaN where either is NaN or zero."""
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    dot = np.sum(a * b, axis=-1)
-    norms = np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.degrees(np.arccos(np.clip(dot / norms, -1.0, 1.0)))

@@ -16,37 +16,44 @@ from __future__ import annotations
 import numpy as np
 
 
-def _rows(name: str, values) -> np.ndarray:
+def _rows(name: str, values, invalid: str) -> tuple[np.ndarray, np.ndarray]:
+    """(rows (M, 3) float64, bad (M,)): `values` (..., 3) flattened to rows; a bad row is not
+    finite or all zero, an error unless `invalid` is "nan"."""
     array = np.asarray(values, dtype=np.float64)
-    if array.ndim == 1:
-        array = array[None]
-    if array.ndim != 2 or array.shape[1] != 3:
+    if array.ndim == 0 or array.shape[-1] != 3:
         raise ValueError(f"{name}: expected RGB rows of shape (N, 3) or (3,), got shape {np.shape(values)}")
-    bad = ~np.isfinite(array).all(axis=1)
-    if bad.any():
-        raise ValueError(f"{name}: row {int(np.argmax(bad))} is not finite ({array[np.argmax(bad)]})")
+    array = array.reshape(-1, 3)
+    not_finite = ~np.isfinite(array).all(axis=1)
     zero = ~(np.abs(array) > 0).any(axis=1)
-    if zero.any():
+    if invalid == "raise" and not_finite.any():
+        raise ValueError(f"{name}: row {int(np.argmax(not_finite))} is not finite ({array[np.argmax(not_finite)]})")
+    if invalid == "raise" and zero.any():
         raise ValueError(f"{name}: row {int(np.argmax(zero))} is zero; an illuminant needs a direction")
-    return array
+    return np.where((not_finite | zero)[:, None], 1.0, array), not_finite | zero
 
 
-def angular_error_degrees(estimate, truth) -> np.ndarray:
+def angular_error_degrees(estimate, truth, *, invalid: str = "raise") -> np.ndarray:
     """Angle in degrees between each estimated and true illuminant (Hordley & Finlayson 2006).
 
-    **Arguments:** `estimate`, `truth`: (N, 3) or (3,) RGB rows of any positive scale (each row
-    is normalised here). **Returns:** (N,) float64 errors in [0, 180]. **Raises:** ValueError for
-    mismatched shapes, non-finite or all-zero rows.
+    **Arguments:** `estimate`, `truth`: RGB rows (..., 3) of one shape, of any positive scale
+    (each row is normalised here; a single (3,) vector is one row); `invalid`: "raise" (default)
+    or "nan", what a non-finite or all-zero row gives (chart patches a file lacks are NaN).
+    **Returns:** float64 errors in [0, 180], shape (...) ((1,) for one (3,) vector).
+    **Raises:** ValueError for mismatched shapes, and for non-finite or all-zero rows unless
+    `invalid` is "nan".
     """
-    est = _rows("estimate", estimate)
-    ref = _rows("truth", truth)
-    if est.shape != ref.shape:
-        raise ValueError(f"estimate has shape {est.shape} but truth has {ref.shape}")
+    if invalid not in ("raise", "nan"):
+        raise ValueError(f"invalid must be 'raise' or 'nan', not {invalid!r}")
+    if np.shape(estimate) != np.shape(truth):
+        raise ValueError(f"estimate has shape {np.shape(estimate)} but truth has {np.shape(truth)}")
+    est, est_bad = _rows("estimate", estimate, invalid)
+    ref, ref_bad = _rows("truth", truth, invalid)
     est = est / np.linalg.norm(est, axis=1, keepdims=True)
     ref = ref / np.linalg.norm(ref, axis=1, keepdims=True)
     sine = np.linalg.norm(np.cross(est, ref), axis=1)
     cosine = np.sum(est * ref, axis=1)
-    return np.degrees(np.arctan2(sine, cosine))
+    errors = np.where(est_bad | ref_bad, np.nan, np.degrees(np.arctan2(sine, cosine)))
+    return errors.reshape(np.shape(estimate)[:-1] or (1,))
 
 
 def error_summary(errors) -> dict:

@@ -12,7 +12,7 @@ sign flips are the permutation null of a paired test, Good, *Permutation Tests*,
 
 Extension: a ColorMatrix pair (Standard Light A / D65) refitted to the charts
 (`colour_fit.refit_colour_matrices`); validated by the mean chromatic angular error on held-out
-images (the chart file's own folds when it has a `fold` column, else `gain.folds_of`). Also
+images (the chart file's own folds when it has a `fold` column, else `measure.folds_of`). Also
 reported: CIEDE2000 of the measured patches as a DNG renderer shows them, before and after.
 """
 
@@ -125,8 +125,8 @@ class ColourMatrix(Cause):
         return colour_fit.summarise(colour_fit.colour_model_errors(profile.colour, measured))["chromatic_mean"]
 
     def cross_validate(self, measured, profile, *, folds: int = 3, seed: int = 0) -> dict:
-        """Held-out gain over the chart file's folds (or `gain.folds_of`)."""
-        from g2r_jax.audit.gain import folds_of
+        """Held-out gain over the chart file's folds (or `measure.folds_of`)."""
+        from g2r_jax.measure import folds_of
 
         if measured.folds is not None:
             fold_index = np.asarray(measured.folds)

@@ -20,7 +20,9 @@ import functools
 
 import numpy as np
 
+from g2r_jax.colour.charts import chart_linear_srgb
 from g2r_jax.colour.spectral import tables
+from g2r_jax.measure import angular_error_degrees
 
 CHROMATIC_PATCHES = slice(0, 18)
 
@@ -44,21 +46,6 @@ def off_locus_lights() -> dict:
             "HP1": tables.illuminant("HP1"),
             "HP1+LED-B3": _equal_luminance_mix(tables.illuminant("HP1"), tables.illuminant("LED-B3")),
             "FL11+D65": _equal_luminance_mix(tables.illuminant("FL11"), tables.illuminant("D65"))}
-
-
-def angular_error_degrees(predicted, truth) -> np.ndarray:
-    predicted = np.asarray(predicted, np.float64)
-    truth = np.asarray(truth, np.float64)
-    cosine = np.sum(predicted * truth, -1) / (np.linalg.norm(predicted, axis=-1) * np.linalg.norm(truth, axis=-1))
-    return np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
-
-
-@functools.lru_cache(maxsize=None)
-def colour_checker_srgb() -> np.ndarray:
-    """Linear sRGB (24, 3) of the ColorChecker under D65 (the CG image), not clipped."""
-    from g2r_jax.colour.conversions import MATRIX_XYZ_TO_SRGB
-
-    return tables.tristimulus(tables.colour_checker(), tables.illuminant("D65")) @ MATRIX_XYZ_TO_SRGB.T
 
 
 def recorded(sensitivities, light) -> np.ndarray:
@@ -99,7 +86,7 @@ def mallett_yuksel_reflectances(srgb) -> np.ndarray:
 
 @functools.lru_cache(maxsize=None)
 def _colour_checker_jakob_hanika() -> np.ndarray:
-    return jakob_hanika_reflectances(colour_checker_srgb())
+    return jakob_hanika_reflectances(chart_linear_srgb())
 
 
 def jakob_hanika_reflectances(srgb) -> np.ndarray:
@@ -156,7 +143,7 @@ def colour_table(sensitivities, colour_model, *, lamp_families=tables.LAMP_FAMIL
     """
     truth_s = np.asarray(sensitivities, np.float64)
     model_s = truth_s if simulated_sensitivities is None else np.asarray(simulated_sensitivities, np.float64)
-    srgb = colour_checker_srgb()
+    srgb = chart_linear_srgb()
     reflectances = {"spectral": mallett_yuksel_reflectances(srgb)}
     if jakob_hanika in ("direct", "both"):
         reflectances["jakob2019"] = _colour_checker_jakob_hanika()
@@ -168,7 +155,7 @@ def colour_table(sensitivities, colour_model, *, lamp_families=tables.LAMP_FAMIL
         neutral = neutral_of(truth_s, light)
 
         def score(predicted):
-            errors = angular_error_degrees(predicted[CHROMATIC_PATCHES], truth)
+            errors = angular_error_degrees(predicted[CHROMATIC_PATCHES], truth, invalid="nan")
             return float(errors.mean()), float(errors.max())
 
         results.setdefault("matrix", {})[name] = score(predict_matrix(srgb, neutral, colour_model))
