@@ -14,7 +14,7 @@ import tifffile
 from PIL import Image
 
 from g2r_jax.io.dng_info import DngError
-from g2r_jax.io.images import list_inputs, read_image, read_image_uint8
+from g2r_jax.io.images import list_inputs, read_image, read_image_uint8, read_images
 
 
 def hashes(folder: Path) -> dict:
@@ -240,3 +240,20 @@ def test_a_png_with_more_data_than_rows_decodes_silently(tmp_path, capfd):
                      + chunk(b"IEND", b""))
     np.testing.assert_array_equal(read_image_uint8(path), U8[:, :, :3])
     assert capfd.readouterr().err == ""
+
+
+def test_read_images_names_and_skips_bad_files(tmp_path):
+    """The one CG loader (`read_images`): every readable image in input order; a damaged file and
+    one under `min_side` go to `problem` by name and the rest are read; without `problem` they raise."""
+    good = np.random.default_rng(0).integers(0, 256, (20, 24, 3)).astype(np.uint8)
+    Image.fromarray(good).save(tmp_path / "a_good.png")
+    (tmp_path / "b_damaged.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\x00" * 40)
+    Image.fromarray(good[:8]).save(tmp_path / "c_small.png")
+    problems = []
+    found = read_images(tmp_path, min_side=16, problem=lambda path, why: problems.append((Path(path).name, why)))
+    assert [p.name for p, _, _ in found] == ["a_good.png"]
+    assert np.array_equal(np.round(found[0][1] * 255).astype(np.uint8), good) and found[0][2] == "srgb"
+    assert [name for name, _ in problems] == ["b_damaged.png", "c_small.png"]
+    assert "smaller than 16" in problems[1][1]
+    with pytest.raises(DngError, match="b_damaged"):
+        read_images(tmp_path)

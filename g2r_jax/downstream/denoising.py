@@ -401,15 +401,10 @@ def _load_cg(images, count: int) -> np.ndarray:
     their common even size."""
     from g2r_jax.io import images as image_io
 
-    arrays = []
-    for item in list(images)[:count]:
-        if isinstance(item, (str, Path)):
-            array = image_io.read_image_uint8(item)
-            if array is None:
-                array = np.round(np.clip(image_io.read_image(item)[0], 0, 1) * 255).astype(np.uint8)
-        else:
-            array = np.asarray(item)
-        arrays.append(array)
+    items = list(images)[:count]
+    paths = [item for item in items if isinstance(item, (str, Path))]
+    arrays = [np.asarray(item) for item in items if not isinstance(item, (str, Path))]
+    arrays += [np.round(np.clip(values, 0, 1) * 255).astype(np.uint8) for _, values, _ in image_io.read_images(paths)]
     if not arrays:
         raise ValueError("the 'cg' content needs CG images (cg_images)")
     h = min(a.shape[0] for a in arrays) // 2 * 2

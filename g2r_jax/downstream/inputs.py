@@ -61,18 +61,10 @@ def read_cg_images(paths, *, max_pixels: Optional[int] = DEFAULT_MAX_PIXELS,
     is passed to `problem(path, reason)` and left out. sRGB files are decoded by IEC 61966-2-1; a
     scene-linear EXR is scaled so that its 99.5th percentile is the render's white."""
     from g2r_jax.colour.conversions import srgb_to_linear
-    from g2r_jax.io.images import list_inputs, read_image
+    from g2r_jax.io.images import read_images
 
     images, used = [], []
-    for path in list_inputs(paths):
-        try:
-            values, encoding = read_image(path, max_pixels)
-        except DngError as error:
-            problem(str(path), error.problem)
-            continue
-        if min(values.shape[:2]) < MIN_CG_SIDE:
-            problem(str(path), f"{values.shape[0]} x {values.shape[1]} is smaller than {MIN_CG_SIDE} pixels")
-            continue
+    for path, values, encoding in read_images(paths, max_pixels=max_pixels, min_side=MIN_CG_SIDE, problem=problem):
         if encoding == "srgb":
             linear = np.asarray(srgb_to_linear(values), np.float32)
         else:

@@ -24,7 +24,7 @@ same stream a second time with Pillow's little-endian unpacker, which then picks
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Iterable, Optional, Union
+from typing import Callable, Iterable, Optional, Union
 
 import numpy as np
 
@@ -32,7 +32,7 @@ from g2r_jax.io.dng_info import DngError
 from g2r_jax.io.image_headers import (DEFAULT_MAX_PIXELS, PNG_SIGNATURE, check_pixel_budget, check_png_complete,
                                       check_jpeg_complete, png_claim)
 
-__all__ = ["read_image", "read_image_uint8", "list_inputs", "DEFAULT_MAX_PIXELS",
+__all__ = ["read_image", "read_image_uint8", "read_images", "list_inputs", "DEFAULT_MAX_PIXELS",
            "SRGB_EXTENSIONS", "EXR_EXTENSIONS", "IMAGE_EXTENSIONS"]
 
 SRGB_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
@@ -377,4 +377,29 @@ def list_inputs(paths: Union[PathLike, Iterable[PathLike]],
             if key not in seen:
                 seen.add(key)
                 out.append(f)
+    return out
+
+
+def read_images(paths: Union[PathLike, Iterable[PathLike]], *, max_pixels: Optional[int] = DEFAULT_MAX_PIXELS,
+                min_side: int = 1, problem: Optional[Callable[[str, str], None]] = None) -> list:
+    """Every image of `paths` (files or folders, expanded by `list_inputs`) that reads:
+    [(path, float32 (H, W, 3) values, encoding)] as `read_image` gives them, in input order.
+
+    A file that does not read (`DngError`), or whose shorter side is under `min_side` pixels, is
+    passed to `problem(path, reason)` and left out, so that one bad file does not stop a set;
+    without `problem` the first such file raises `DngError`. A path that is missing, or a folder
+    without images, raises `DngError` as in `list_inputs`.
+    """
+    out = []
+    for path in list_inputs(paths):
+        try:
+            values, encoding = read_image(path, max_pixels)
+            if min(values.shape[:2]) < min_side:
+                raise DngError(path, f"{values.shape[0]} x {values.shape[1]} is smaller than {min_side} pixels")
+        except DngError as error:
+            if problem is None:
+                raise
+            problem(str(path), error.problem)
+            continue
+        out.append((path, values, encoding))
     return out
