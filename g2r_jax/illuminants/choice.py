@@ -16,7 +16,7 @@ from g2r_jax.illuminants import distributions as _distributions
 from g2r_jax.illuminants import kernel as _kernel
 
 PRIOR_KINDS = {"prior": "day", "prior-night": "night", "prior-day-night": "day_night"}
-KINDS = ("auto", "kernel", "gaussian", "mixture", "locus", *PRIOR_KINDS)
+KINDS = ("auto", "kernel", "pooled", "gaussian", "mixture", "locus", *PRIOR_KINDS)
 MIN_LIGHTS_FOR_KERNEL = 10     # 'auto': the kernel model from this many distinct measured lights, else the prior
 LOCUS_CCT_RANGE = (2000.0, 20000.0)   # the camera's Planckian locus giving the kernels' directions
 MEASUREMENT = "docs validation/illuminant_models"
@@ -125,13 +125,24 @@ def fit_kernel_for_camera(points, colour_model, dtype=np.float32) -> tuple:
     return model, words
 
 
+def fit_pooled_for_camera(points, colour_model, exclude=(), dtype=np.float32, base=None) -> tuple:
+    """(model, words) of the pooled model (`illuminants.pooled`): the kernel density of `points`
+    (N >= 0) blended with other cameras' lights carried into this camera (`exclude`: source
+    cameras left out, e.g. the camera under test; `base`: a `pooled.pooled_base` to reuse)."""
+    from g2r_jax.illuminants.pooled import fit_pooled
+
+    return fit_pooled(distinct_lights(points), colour_model, lambda p: camera_locus_tangents(p, colour_model),
+                      exclude=exclude, dtype=dtype, base=base)
+
+
 def choose_illuminant_model(chromaticities, colour_model, kind: str = "auto", seed: int = 0,
                             dtype=np.float32) -> IlluminantChoice:
     """Fit the illuminant model `kind` (one of `KINDS`) to the measured lights.
 
     **Arguments:** `chromaticities`: (N, 2) measured scene lights (r/g, b/g), N >= 0;
     `colour_model`: the camera's `DngColourModel` (for the prior, the locus and the kernels'
-    directions); `kind`: 'kernel' (`illuminants.kernel`), 'gaussian' (published: one Gaussian and
+    directions); `kind`: 'kernel' (`illuminants.kernel`), 'pooled' (`illuminants.pooled`: the
+    kernel of the lights on other cameras' lights carried into this one), 'gaussian' (published: one Gaussian and
     the lights' convex hull), 'mixture' (BIC-selected Gaussians and the hull), 'locus' (the
     calibration matrices' CCT locus, supplement S3), 'prior', 'prior-night', 'prior-day-night'
     (`illuminants.prior` with that preset) or 'auto': the kernel model from `MIN_LIGHTS_FOR_KERNEL`
@@ -163,6 +174,9 @@ def choose_illuminant_model(chromaticities, colour_model, kind: str = "auto", se
                                 f"{why}: the calibration matrices' A-D65 CCT locus, no measured light used", n)
     if kind in PRIOR_KINDS:
         return _prior_choice(points, colour_model, kind, why, auto, dtype)
+    if kind == "pooled":
+        model, words = fit_pooled_for_camera(points, colour_model, dtype=dtype)
+        return IlluminantChoice(model, f"{why}: {words}", n)
     if kind == "kernel":
         if n == 0:
             raise ValueError("the kernel illuminant model needs at least one measured illuminant "

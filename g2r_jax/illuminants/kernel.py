@@ -94,13 +94,14 @@ def choose_bandwidths(points, tangents) -> tuple[float, float]:
 
 
 def fit_kernel(chromaticities, tangents, *, prior=None, prior_lights: float = PRIOR_PSEUDO_LIGHTS,
-               bandwidths=None, dtype=np.float32) -> _distributions.IlluminantModel:
+               bandwidths=None, weights=None, dtype=np.float32) -> _distributions.IlluminantModel:
     """The kernel model of the module docstring.
 
     **Arguments:** `chromaticities`: (N, 2) measured lights (r/g, b/g), N >= 1; `tangents`: (N, 2)
     the locus direction at each (`locus_tangents`); `prior`: an `IlluminantModel` to blend with
     weight prior_lights / (N + prior_lights) (None: the kernels alone); `bandwidths`: (along,
-    across) instead of the cross-validated ones; `dtype` of the model.
+    across) instead of the cross-validated ones; `weights`: (N,) positive weights of the lights
+    (None: equal); `dtype` of the model.
 
     **Returns:** an `IlluminantModel` of kind 'kernel'. Its sampler keeps draws inside the prior's
     support when every light lies inside it (else only r/g, b/g > 1e-3).
@@ -112,7 +113,10 @@ def fit_kernel(chromaticities, tangents, *, prior=None, prior_lights: float = PR
     if len(tangents) != len(points) or not np.all(np.isfinite(points)) or np.any(points <= 0):
         raise ValueError("the kernel illuminant model needs finite, positive (r/g, b/g) and one tangent per light")
     along, across = choose_bandwidths(points, tangents) if bandwidths is None else bandwidths
-    weights = np.full(len(points), 1.0 / len(points))
+    weights = np.full(len(points), 1.0) if weights is None else np.asarray(weights, np.float64).reshape(-1)
+    if len(weights) != len(points) or not np.all(weights > 0):
+        raise ValueError("the kernel illuminant model needs one positive weight per light")
+    weights = weights / weights.sum()
     means, covariances, hull = points, kernel_covariances(tangents, along, across), _POSITIVE
     if prior is not None:
         share = prior_lights / (len(points) + prior_lights)

@@ -1,0 +1,209 @@
+"""The few-DNG regime (issue 33): an illuminant estimator trained on g2r_jax RAW whose lights come from
+0 (the profile as shipped), 1, 3, 5, 10, 25 or all of the camera's measured lights, per illuminant
+model, tested on the camera's real NUS images (the protocol of `g2r_jax.downstream.experiment`:
+folds by `measure.folds_of`, training lights from the training folds only, tested on the held-out fold).
+
+Rows: `shipped` (the profile as given, lights 0), and each model of `--models` at each count of
+`--lights`: `prior` and `locus` use no light (lights 0 only); `kernel` needs one; `auto` is what
+g2r-fit-profile fits; `pooled` is `illuminants.pooled` with the camera under test left out of the
+pool (leave-one-camera-out: none of its lights informs its own prior). Each count below all is
+drawn `--draws` times per fold (a different random subset of the fold's training lights each).
+Content: `cg` (the CARLA frames, the paper's setting) or `real` (the training folds' real images
+relit to the model's lights, `experiment`'s real_profile_light: the lights' own cost).
+Identical models (e.g. `auto` below 10 lights and `prior`) are trained once.
+
+    python benchmarks/few_lights.py [--cameras Canon600D,NikonD40] [--lights 0,1,5,all]
+        [--models prior,locus,kernel,pooled] [--content cg,real] [--estimators cnn,moments]
+        [--seeds 1] [--n 300] [--draws 1] --out out/few_lights.jsonl
+
+Every finished (camera, row, content, estimator, seed, fold, draw) is one line of `--out`, so a run
+stopped early keeps what it did and a rerun with the same `--out` skips it; `--summary` prints
+the table of a results file (mean over folds and draws per camera, then over cameras).
+Profiles and data as in benchmarks/downstream_nus.py.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from downstream_nus import CAMERAS, CARLA, NUS, camera_profile  # noqa: E402
+
+MODELS = ("prior", "locus", "kernel", "auto", "pooled")
+NO_LIGHT_MODELS = ("prior", "locus")
+
+
+_POOLED_BASES = {}
+
+
+def model_for(name, camera, profile, lights):
+    """The profile with the illuminant model `name` fitted to `lights` (N, 3) of this camera, or
+    None where the model does not take that many lights. `pooled` leaves `camera` out of the pool."""
+    from g2r_jax.illuminants import choice
+    from g2r_jax.illuminants.distributions import neutral_to_chromaticity
+    from g2r_jax.profile.schema import replace
+
+    points = neutral_to_chromaticity(np.asarray(lights, np.float64).reshape(-1, 3))
+    if name == "shipped":
+        return profile if len(points) == 0 else None
+    if (name in NO_LIGHT_MODELS and len(points)) or (name == "kernel" and not len(points)):
+        return None
+    if name == "pooled":
+        from g2r_jax.illuminants.pooled import pooled_base
+
+        if camera not in _POOLED_BASES:
+            _POOLED_BASES[camera] = pooled_base(profile.colour, lambda p: choice.camera_locus_tangents(p, profile.colour),
+                                                exclude=(camera,))
+        model, _ = choice.fit_pooled_for_camera(points, profile.colour, exclude=(camera,), base=_POOLED_BASES[camera])
+    else:
+        model = choice.choose_illuminant_model(points, profile.colour, name).model
+    return replace(profile, illuminants=model)
+
+
+def fingerprint(profile) -> str:
+    """Identity of an illuminant model: the hash of its arrays (identical models train once)."""
+    digest = hashlib.sha1(profile.illuminants.kind.encode())
+    for leaf in (profile.illuminants.weights, profile.illuminants.means, profile.illuminants.cholesky,
+                 profile.illuminants.hull):
+        digest.update(np.ascontiguousarray(np.asarray(leaf, np.float32)).tobytes())
+    return digest.hexdigest()[:16]
+
+
+def light_subsets(train_lights, count, draws, seed, fold):
+    """`draws` random subsets of `count` training lights (all of them once for count None)."""
+    if count is None or count >= len(train_lights):
+        return [train_lights]
+    return [train_lights[np.random.default_rng([seed, fold, count, draw]).choice(len(train_lights), count,
+                                                                                  replace=False)]
+            for draw in range(draws)]
+
+
+def _done(out: Path) -> set:
+    if not out.exists():
+        return set()
+    keys = set()
+    for line in out.read_text().splitlines():
+        r = json.loads(line)
+        keys.add((r["camera"], r["model"], r["lights"], r["content"], r["estimator"], r["seed"], r["fold"], r["draw"]))
+    return keys
+
+
+def run_camera(camera, args, out, say):
+    """Every row of one camera; one JSON line per finished result."""
+    from PIL import Image
+
+    from g2r_jax.downstream import real_sets, training_sets as sets
+    from g2r_jax.downstream.estimators import train_estimator
+    from g2r_jax.measure import angular_error_degrees, folds_of
+
+    done = _done(out)
+    profile = camera_profile(camera)
+    real = real_sets.load_nus(NUS / f"{camera}.npz")
+    linear = sets.linear_images([np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))])
+    folds = folds_of(len(real.images), 3, 0, groups=real.groups)
+    for seed in range(args.seeds):
+        views = sets.cg_views(linear, args.n, seed)
+        for fold, test in enumerate(folds):
+            train = np.setdiff1d(np.arange(len(real.images)), test)
+            trained, relit = {}, []
+            for count in args.lights:
+                for draw, lights in enumerate(light_subsets(real.illuminants[train], count, args.draws, seed, fold)):
+                    for name in args.models:
+                        fitted = model_for(name, camera, profile, lights[:0] if count == 0 else lights)
+                        if fitted is None:
+                            continue
+                        for content in args.content:
+                            base = dict(camera=camera, model=name, lights="all" if count is None else count,
+                                        content=content, seed=seed, fold=fold, draw=draw)
+                            if all((camera, name, base["lights"], content, e, seed, fold, draw) in done
+                                   for e in args.estimators):
+                                continue
+                            start = time.perf_counter()
+                            salt = 1000 * seed + 10 * fold + 4
+                            if content == "cg":
+                                images, labels = sets.g2r_set(views, fitted, salt)
+                            else:
+                                if not relit:   # the training folds' real images, once per fold
+                                    views_real = sets.real_to_linear_srgb(real.images[train], real.illuminants[train],
+                                                                          profile)
+                                    relit.append(np.concatenate([views_real] * -(-args.n // len(views_real)))[:args.n])
+                                images, labels = sets.g2r_set(relit[0], fitted, salt + 4)
+                            for estimator in args.estimators:
+                                key = (fingerprint(fitted), content, estimator)
+                                if key not in trained:
+                                    predict = train_estimator(estimator, images, labels, seed=1000 * seed + fold)
+                                    trained[key] = angular_error_degrees(predict(real.images[test]),
+                                                                         real.illuminants[test])
+                                errors = trained[key]
+                                record = {**base, "estimator": estimator, "mean": float(np.mean(errors)),
+                                          "n_test": int(len(errors)), "model_id": key[0],
+                                          "seconds": round(time.perf_counter() - start, 1)}
+                                with out.open("a") as stream:
+                                    stream.write(json.dumps(record) + "\n")
+                            say(f"{camera} seed {seed} fold {fold} {name} lights {base['lights']} draw {draw} "
+                                f"{content}: {time.perf_counter() - start:.0f} s")
+
+
+def summary(path: Path) -> str:
+    """Markdown table: mean error per (content, estimator, model, lights), per camera and the mean
+    of the cameras (each camera's figure: the mean over its folds, draws and seeds)."""
+    records = [json.loads(line) for line in path.read_text().splitlines()]
+    cameras = sorted({r["camera"] for r in records})
+    cells = {}
+    for r in records:
+        cells.setdefault((r["content"], r["estimator"], r["model"], str(r["lights"]), r["camera"]), []).append(r["mean"])
+    out = ["| content | estimator | model | lights | " + " | ".join(cameras) + " | mean of cameras |",
+           "|---|---|---|---|" + "---|" * (len(cameras) + 1)]
+    order = {str(k): i for i, k in enumerate([0, 1, 3, 5, 10, 25, "all"])}
+    for content, estimator, model, lights in sorted({k[:4] for k in cells},
+                                                    key=lambda k: (k[0], k[1], MODELS.index(k[2]) if k[2] in MODELS
+                                                                   else -1, order.get(k[3], 99))):
+        per = [np.mean(cells[(content, estimator, model, lights, c)]) if (content, estimator, model, lights, c) in cells
+               else np.nan for c in cameras]
+        mean = f"{np.mean(per):.2f}" if not np.any(np.isnan(per)) else "-"
+        out.append(f"| {content} | {estimator} | {model} | {lights} | "
+                   + " | ".join("-" if np.isnan(v) else f"{v:.2f}" for v in per) + f" | {mean} |")
+    return "\n".join(out)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--cameras", default=",".join(CAMERAS))
+    parser.add_argument("--lights", default="0,1,3,5,10,25,all")
+    parser.add_argument("--models", default="shipped," + ",".join(MODELS))
+    parser.add_argument("--content", default="cg,real")
+    parser.add_argument("--estimators", default="cnn,moments")
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--n", type=int, default=300)
+    parser.add_argument("--draws", type=int, default=3)
+    parser.add_argument("--out", type=Path, default=Path("out/few_lights.jsonl"))
+    parser.add_argument("--summary", action="store_true", help="print the table of --out and stop")
+    args = parser.parse_args(argv)
+    if args.summary:
+        print(summary(args.out))
+        return 0
+    if not NUS.is_dir() or not CARLA.is_dir():
+        print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
+        return 2
+    from g2r_jax.runtime import compile_cache
+
+    compile_cache.enable(program="g2r_jax-downstream")
+    args.lights = [None if v == "all" else int(v) for v in args.lights.split(",")]
+    args.models, args.content = args.models.split(","), args.content.split(",")
+    args.estimators = args.estimators.split(",")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    for camera in args.cameras.split(","):
+        run_camera(camera, args, args.out, lambda m: print(m, file=sys.stderr, flush=True))
+    print(summary(args.out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
