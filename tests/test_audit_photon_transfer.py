@@ -15,6 +15,7 @@ from g2r_jax.audit import black_evidence, bursts, diagnose
 from g2r_jax.audit.causes import BY_NAME
 from g2r_jax.audit.evidence import nlf_edges
 from g2r_jax.audit.synthetic_bursts import BurstTruth, burst, scene_signal, truth_profile
+from g2r_jax.measure.dark_frames import is_dark_frame
 
 SENSOR = [BY_NAME[c] for c in ("noise_model", "black_level", "white_level", "green_imbalance", "lens_shading",
                                "defective_pixels", "banding")]
@@ -45,8 +46,8 @@ def test_dark_frames_and_scenes_are_told_apart():
     truth = BurstTruth(**{**TEN_BIT.__dict__, "pedestal": 2.0})
     dim = burst(truth, scene_signal(3, 128, 192, low=0.004, high=0.03), 1, seed=1, n_dark=1)
     (scene, info), (dark, _) = dim
-    assert not black_evidence.is_dark_frame(scene, info.black_level, truth.span)
-    assert black_evidence.is_dark_frame(dark, info.black_level, truth.span)
+    assert not is_dark_frame(scene, info.black_level, info.white_level)
+    assert is_dark_frame(dark, info.black_level, info.white_level)
     found = black_evidence.file_evidence(dark, info, info.black_level, truth.span)
     assert found["source"] == "dark frame" and np.allclose(found["offset"], 2.0, atol=0.1)
     assert black_evidence.file_evidence(scene, info, info.black_level, truth.span) is None
@@ -103,4 +104,4 @@ def test_quiet_integer_dark_frame_is_a_dark_frame():
     0; the dark frame must still be recognised (else it counts as a black scene)."""
     truth = BurstTruth(**{**TEN_BIT.__dict__, "read": 0.16 / 959**2, "prnu": 0.0, "dsnu_dn": 0.0})
     (dark, info), = burst(truth, np.zeros((120, 180)), 0, seed=3, n_dark=1)
-    assert black_evidence.is_dark_frame(dark, info.black_level, truth.span)
+    assert is_dark_frame(dark, info.black_level, info.white_level)

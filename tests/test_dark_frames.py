@@ -15,7 +15,9 @@ from dark_frame_sensors import dark_variance, frames, s20fe, simulated_black_var
 from g2r_jax.audit.synthetic_bursts import scene_signal
 from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels
 from g2r_jax.profile.fitting import fit_profile
-from g2r_jax.sensor import dark_frames
+from g2r_jax.audit.black_evidence import file_evidence
+from g2r_jax.measure.dark_frames import dark_frame_statistics, is_dark_frame
+from g2r_jax.sensor.dark_frames import read_from_dark_frames
 from g2r_jax.sensor.noise import temporal
 from g2r_jax.sensor.noise.quantisation import rounded_gaussian_variance, variance_before_rounding
 
@@ -75,9 +77,21 @@ def test_detector_tells_dark_frames_from_dim_scenes():
     dim = scene_signal(5, 128, 192, low=0.004, high=0.03)
     mosaics = frames(truth, dim, 2, 2, seed=5)
     black, white = np.full(4, truth.black), truth.white
-    assert [dark_frames.is_dark_frame(m, black, white) for m in mosaics] == [False, False, True, True]
+    assert [is_dark_frame(m, black, white) for m in mosaics] == [False, False, True, True]
     quiet = frames(s20fe(100.0), np.zeros((128, 192)), 0, 1, seed=6)[0]     # 0.44-0.5 DN: mostly 0 and +-1
-    assert dark_frames.is_dark_frame(quiet, black, white)
+    assert is_dark_frame(quiet, black, white)
+
+
+def test_the_audit_takes_black_level_evidence_from_the_same_dark_frames():
+    """One detector (`g2r_jax.measure.dark_frames`): the audit's black-level evidence is the dark
+    frames profile fitting finds, and none from a dim scene."""
+    truth = s20fe(1600.0, dsnu_dn=0.3, hot_fraction=2e-4, row_banding_dn=1.0)
+    mosaics = frames(truth, scene_signal(5, 128, 192, low=0.004, high=0.03), 1, 2, seed=9)
+    black, span = np.full(4, truth.black), truth.white - np.full(4, truth.black)
+    info = type("Info", (), {"path": ""})()
+    found = [file_evidence(m, info, black, span) for m in mosaics]
+    assert found[0] is None and [f["source"] for f in found[1:]] == ["dark frame", "dark frame"]
+    assert [is_dark_frame(m, black, truth.white) for m in mosaics] == [False, True, True]
 
 
 def test_hot_pixels_and_banding_do_not_throw_the_read_noise():
@@ -87,8 +101,8 @@ def test_hot_pixels_and_banding_do_not_throw_the_read_noise():
     noisy = s20fe(800.0, hot_fraction=5e-4, row_banding_dn=0.8)
     shape = np.zeros((256, 384))
     reference = dark_variance(frames(clean, shape, 0, 3, seed=7))
-    stats = [dark_frames.dark_frame_statistics(m) for m in frames(noisy, shape, 0, 3, seed=7)]
-    found = dark_frames.read_from_dark_frames(stats, np.full(4, 60.0), 1023.0)
+    stats = [dark_frame_statistics(m) for m in frames(noisy, shape, 0, 3, seed=7)]
+    found = read_from_dark_frames(stats, np.full(4, 60.0), 1023.0)
     expected = reference + 0.8**2
     assert np.all(np.abs(found.variance_dn2 / expected - 1) < 0.08), found.variance_dn2 / expected
     assert found.hot_fraction > 2e-4

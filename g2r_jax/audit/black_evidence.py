@@ -6,8 +6,8 @@ measured where the sensor sees no light:
 - optical-black pixels: the `MaskedAreas` rectangles of the raw IFD and the margins of the raw
   frame outside `ActiveArea` (DNG specification 1.6, ch. 4, tags ActiveArea and MaskedAreas);
 - dark frames in the measured set (a capture with the lens capped): a frame with no structure
-  (its 8 x 8 block means spread no more than its pixel noise allows) whose level is within
-  `DARK_FRAME_MAX` of the tag.
+  (its 8 x 8 block means spread no more than its pixel noise allows) whose level is near the tag
+  (`g2r_jax.measure.dark_frames.is_dark_frame`, the detector profile fitting uses too).
 
 The darkest content of a scene is not such evidence: a dim scene has no black, so its darkest
 blocks read the scene, not the sensor. A file without optical-black pixels that is not a dark
@@ -24,10 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from g2r_jax.measure import mad_sd, trimmed_variance
+from g2r_jax.measure.dark_frames import is_dark_frame
 
-DARK_FRAME_MAX = 0.05        # a structureless frame this close to the tag (fraction of range) is a dark frame
-STRUCTURE_RATIO = 3.0        # block-mean spread at most this many times what pixel noise gives
 MIN_PIXELS = 256             # fewest optical-black pixels per CFA position worth a mean
 CLIPPED_FRACTION = 1e-3      # evidence with more pixels at raw 0 than this is biased by the clip: not used
 MASKED_AREAS_TAG = 50830
@@ -153,37 +151,6 @@ def optical_black_evidence(info, black_dn) -> dict | None:
     return out
 
 
-def is_dark_frame(mosaic, black_dn, span) -> bool:
-    """True for a frame without light: its 8 x 8 block means (per CFA position) spread at most
-    STRUCTURE_RATIO times sd / 8 (what pixel noise alone gives; scene content spreads them far
-    more), its median is within DARK_FRAME_MAX of the range above the tag, and it is not clipped
-    at raw 0 (a clipped dark frame's mean is biased)."""
-    m = np.asarray(mosaic)
-    black_dn = np.resize(np.asarray(black_dn, np.float64), 4)
-    span = np.resize(np.asarray(span, np.float64), 4)
-    if np.mean(m == 0) > CLIPPED_FRACTION:
-        return False
-    step = max(1, int(np.sqrt(m.size / 4 / 250_000)))   # large files: a strided subset of rows will do
-    for p, (dy, dx) in enumerate(((0, 0), (0, 1), (1, 0), (1, 1))):
-        plane = m[dy::2, dx::2][::step].astype(np.float64)
-        h, w = plane.shape[0] // 8 * 8, plane.shape[1] // 8 * 8
-        if h == 0 or w == 0:
-            return False
-        plane = plane[:h, :w]
-        # noise, whatever the level: a trimmed second moment of neighbour differences (a MAD is 0
-        # on integer data of ~0.5 DN noise, where most differences are 0)
-        pixel_sd = np.sqrt(trimmed_variance(np.diff(plane, axis=1).ravel().astype(np.float64)) / 2)
-        blocks = plane.reshape(h // 8, 8, w // 8, 8).mean(axis=(1, 3))
-        level = (np.median(plane) - black_dn[p]) / span[p]
-        if not (abs(level) < DARK_FRAME_MAX and pixel_sd > 0):
-            return False
-        if mad_sd(blocks) > STRUCTURE_RATIO * pixel_sd / 8:
-            return False
-        if np.ptp(np.percentile(blocks, [0.1, 99.9])) > 10 * STRUCTURE_RATIO * pixel_sd / 8:
-            return False
-    return True
-
-
 def dark_frame_evidence(mosaic, black_dn) -> dict:
     """Black-level evidence of a dark frame: its pixels' mean minus the tag (see `_half_means`)."""
     m = np.asarray(mosaic)
@@ -204,7 +171,8 @@ def file_evidence(mosaic, info, black_dn, span) -> dict | None:
     found = optical_black_evidence(info, black_dn)
     if found is not None:
         return found
-    if is_dark_frame(mosaic, black_dn, span):
+    black_dn = np.resize(np.asarray(black_dn, np.float64), 4)
+    if is_dark_frame(mosaic, black_dn, black_dn + np.resize(np.asarray(span, np.float64), 4)):
         return dark_frame_evidence(mosaic, black_dn)
     return None
 

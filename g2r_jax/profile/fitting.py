@@ -241,7 +241,7 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
     came from (stored in the profile); `notes`: a list that gets one line per thing a user should
     know (the dark frames found and what was taken from them).
 
-    Dark frames among `infos` (recognised from their pixels, `g2r_jax.sensor.dark_frames`) give
+    Dark frames among `infos` (recognised from their pixels, `g2r_jax.measure.dark_frames`) give
     the read noise of their ISO and the black level, and take no part in the colour, illuminant
     and exposure fits (they have no scene and no meaningful as-shot neutral).
 
@@ -260,7 +260,7 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
                                       f"{reference.path}'s {reference.calibration_illuminants}")
     dark_frames, scenes = [], infos
     if noise is None or chromaticities is None:
-        from g2r_jax.sensor.dark_frames import find_dark_frames
+        from g2r_jax.measure.dark_frames import find_dark_frames
 
         scenes, dark_frames = find_dark_frames(infos)
         infos = scenes or infos    # only dark frames: their tags still give the colour and levels

@@ -5,7 +5,7 @@ Measures the mean log2 signal of the image centre (`stats.brightness`); extensio
 
 Frames without light (dark frames: `stats.file_statistics`'s `dark_frame`, and frames whose
 centre stays within the read noise, which is what a dark frame clipped at raw 0 looks like to
-`black_evidence.is_dark_frame`, e.g. gopro_hero6's with BlackLevel 0) have no exposure: their
+`measure.dark_frames.is_dark_frame`, e.g. gopro_hero6's with BlackLevel 0) have no exposure: their
 brightness is log2 of the noise floor, ~10 stops below any scene. They are left out (NaN). Three
 such frames among 24 scenes of a gopro_hero6 set shifted by +2.9 stops read a difference of 0.99
 stops at |t| = 1.24 (not significant) instead of the scenes' 2.3 stops.
