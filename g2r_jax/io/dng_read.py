@@ -27,7 +27,7 @@ import numpy as np
 
 from g2r_jax.io.dng_info import DngError, DngInfo
 from g2r_jax.io.illuminant_data import parse_illuminant_data
-from g2r_jax.io.pixel_layout import bits_problem, decoded_problem, layout_problem
+from g2r_jax.io.pixel_layout import bits_problem, decoded_problem, layout_problem, stored_values_problem
 from g2r_jax.io.raw_compression import undecodable_reason
 from g2r_jax.io.tag_checks import check_dng_tags
 
@@ -398,7 +398,7 @@ def _parse(path: Path, tif, file_size: int) -> DngInfo:
     _read_white_balance(info, ifds)
     _read_exposure(info, ifds)
     _read_geometry(info, ifds)
-    _check_pixel_layout(info, raw, (ifd0, raw), tif.filehandle, file_size)
+    _check_pixel_layout(info, raw, (ifd0, raw), tif.filehandle, tif.byteorder, file_size)
     return info
 
 
@@ -566,13 +566,15 @@ def _read_geometry(info: DngInfo, ifds: _Ifds) -> None:
             info.opcode_lists[f"OpcodeList{k}"] = _raw_bytes(tag)
 
 
-def _check_pixel_layout(info: DngInfo, raw, pages, handle, file_size: int) -> None:
+def _check_pixel_layout(info: DngInfo, raw, pages, handle, byteorder: str, file_size: int) -> None:
     """Refuse tags that contradict the pixel data; note pixel data that is missing or that this
     LibRaw cannot decode (tags still usable: `info.pixel_data_problem`)."""
     info.compression = int(raw.compression)
     found = layout_problem(raw, pages, handle, file_size)
     refusal = found.refusal or bits_problem(info.bits_per_sample, info.white_level,
                                             info.linearization_table is not None)
+    if refusal is None and found.warning is None and info.linearization_table is None:
+        refusal = stored_values_problem(raw, handle, byteorder, info.white_level)
     if refusal is not None:
         raise DngError(info.path, refusal)
     problem = undecodable_reason(info.compression) or found.warning

@@ -30,15 +30,17 @@ from typing import Optional
 
 import numpy as np
 
-__all__ = ["LayoutProblem", "layout_problem", "bits_problem", "decoded_problem",
-           "MAX_SHARE_ABOVE_WHITE", "ZERO_FILL_SHARE", "ZERO_FILL_MIN_BLACK", "GREEN_PHASE_RATIO"]
+__all__ = ["LayoutProblem", "layout_problem", "stored_values_problem", "bits_problem", "decoded_problem",
+           "MAX_SHARE_ABOVE_WHITE", "FAR_ABOVE_WHITE", "ZERO_FILL_SHARE", "ZERO_FILL_MIN_BLACK", "GREEN_PHASE_RATIO"]
 
 _OFFSET_TAGS = {"strips": (273, 279), "tiles": (324, 325)}   # (offsets, byte counts)
 _HEADER_BYTES = 8            # TIFF header: byte order, 42, offset of IFD0
 _IFD_ENTRY_BYTES = 12
 _LOSSLESS_JPEG = 7
 _UNCOMPRESSED = 1
-MAX_SHARE_ABOVE_WHITE = 0.01   # real sensors: a few hot pixels above WhiteLevel at most
+MAX_SHARE_ABOVE_WHITE = 0.01   # share of values allowed far above WhiteLevel (hot pixels)
+FAR_ABOVE_WHITE = 1.5          # "far above": over 1.5 x WhiteLevel. Some cameras tag the end of the
+                               # linear range and their highlights run past it, never this far
 ZERO_FILL_SHARE = 0.5          # LibRaw fills data it cannot find with zeros
 ZERO_FILL_MIN_BLACK = 16.0     # below this black level, zeros can be real dark pixels
 GREEN_PHASE_RATIO = 2.0        # measured: 0.11 and 0.26 on a g2r-convert example and a GoPro frame, 4-7 shifted
@@ -221,21 +223,69 @@ def _missing_warning(layout: _Layout, file_size: int) -> Optional[str]:
     return None
 
 
+def _data_present(layout: _Layout) -> bool:
+    """Whether the segments hold a real share of the pixels (at least one bit per sample), as
+    against a header-only file whose pixel data was left out."""
+    samples = layout.width * layout.height * layout.samples * layout.planes
+    return sum(layout.counts) >= samples // 8
+
+
+def _segment_count_refusal(layout: _Layout) -> Optional[str]:
+    """With the pixel data present, the number of segments must be the one the size tags give."""
+    expected = layout.expected_segments()
+    if len(layout.offsets) == expected or not _data_present(layout):
+        return None
+    return (f"{len(layout.offsets)} {layout.kind} of pixel data, but ImageWidth x ImageLength "
+            f"{layout.width}x{layout.height} in {layout.kind} of {layout.segment_width}x{layout.segment_rows} "
+            f"need {expected}: size tags disagree with the data")
+
+
 def layout_problem(page, pages, handle, file_size: int) -> LayoutProblem:
     """Check the raw IFD `page` (a tifffile TiffPage) against the file: `pages` are the IFDs read
     (their entries and values must not be overwritten by pixel data), `handle` a binary file
     object of the DNG (to read a lossless JPEG frame header). Returns what was found."""
     layout = _layout(page)
-    refusal = _geometry_refusal(layout)
-    if refusal is None:
-        refusal = _overlap_refusal(layout, pages)
+    refusal = _geometry_refusal(layout) or _overlap_refusal(layout, pages)
+    if refusal is None and layout.compression in (_UNCOMPRESSED, _LOSSLESS_JPEG):
+        refusal = _segment_count_refusal(layout)
+    if refusal is None and layout.compression == _UNCOMPRESSED and _data_present(layout):
+        refusal = _uncompressed_refusal(layout)
     warning = None if refusal else _missing_warning(layout, file_size)
-    if refusal is None and warning is None:
-        if layout.compression == _UNCOMPRESSED:
-            refusal = _uncompressed_refusal(layout)
-        elif layout.compression == _LOSSLESS_JPEG:
-            refusal = _lossless_jpeg_refusal(layout, handle)
+    if refusal is None and warning is None and layout.compression == _LOSSLESS_JPEG:
+        refusal = _lossless_jpeg_refusal(layout, handle)
     return LayoutProblem(refusal, warning)
+
+
+def stored_values_problem(page, handle, byteorder: str, white_level: float, chunks: int = 16,
+                          chunk_bytes: int = 8192) -> Optional[str]:
+    """Uncompressed 8- or 16-bit data, sampled without decoding (`chunks` reads of `chunk_bytes`
+    spread over the data): more than `MAX_SHARE_ABOVE_WHITE` of the values over `FAR_ABOVE_WHITE` x
+    WhiteLevel means the WhiteLevel (or BitsPerSample) tag is wrong. Lets commands that read tags only (profile
+    fitting) refuse such a file too. None when the data is not of that kind or is missing."""
+    layout = _layout(page)
+    if layout.compression != _UNCOMPRESSED or layout.bits not in (8, 16) or not layout.counts:
+        return None
+    dtype = np.dtype(np.uint8 if layout.bits == 8 else np.uint16).newbyteorder(byteorder)
+    total = sum(layout.counts)
+    values = []
+    for k in range(chunks):
+        position = int(total * (k + 0.5) / chunks)
+        for offset, count in zip(layout.offsets, layout.counts):
+            if position < count:
+                start = offset + position // dtype.itemsize * dtype.itemsize
+                handle.seek(start)
+                size = min(chunk_bytes, offset + count - start) // dtype.itemsize * dtype.itemsize
+                values.append(np.frombuffer(handle.read(size), dtype=dtype)[: size // dtype.itemsize])
+                break
+            position -= count
+    sample = np.concatenate(values) if values else np.zeros(0)
+    if sample.size == 0:
+        return None
+    above = float(np.count_nonzero(sample > FAR_ABOVE_WHITE * white_level)) / sample.size
+    if above <= MAX_SHARE_ABOVE_WHITE:
+        return None
+    return (f"{100 * above:.0f} % of the stored values (sampled, largest {int(sample.max())}) exceed WhiteLevel "
+            f"{white_level:g} by half or more: WhiteLevel or BitsPerSample disagrees with the data")
 
 
 def bits_problem(bits: int, white_level: float, has_linearization_table: bool) -> Optional[str]:
@@ -268,8 +318,8 @@ def _green_phase_problem(mosaic: np.ndarray, cfa_pattern) -> Optional[str]:
 
 
 def decoded_problem(mosaic: np.ndarray, black_level, white_level: float, cfa_pattern=None) -> Optional[str]:
-    """A decoded raster its tags cannot describe: values far above WhiteLevel in more than
-    `MAX_SHARE_ABOVE_WHITE` of the pixels (bytes read at the wrong place or width), a constant
+    """A decoded raster its tags cannot describe: values over `FAR_ABOVE_WHITE` x WhiteLevel in more
+    than `MAX_SHARE_ABOVE_WHITE` of the pixels (bytes read at the wrong place or width), a constant
     raster outside black..white, zeros in most pixels of a camera whose black level is at least
     `ZERO_FILL_MIN_BLACK` (LibRaw's fill for data it could not find), or the CFA's green sites
     out of phase with `cfa_pattern` (`_green_phase_problem`)."""
@@ -280,10 +330,10 @@ def decoded_problem(mosaic: np.ndarray, black_level, white_level: float, cfa_pat
     if largest == smallest and not black <= largest <= white_level:
         return (f"every decoded pixel is {largest}, outside the tagged range {black:g}..{white_level:g}: "
                 "the pixel data is not where the tags say")
-    above = float(np.count_nonzero(mosaic > white_level)) / mosaic.size
+    above = float(np.count_nonzero(mosaic > FAR_ABOVE_WHITE * white_level)) / mosaic.size
     if above > MAX_SHARE_ABOVE_WHITE:
-        return (f"{100 * above:.1f} % of the decoded pixels exceed WhiteLevel {white_level:g} (largest {largest}): "
-                "the pixel data does not match its tags")
+        return (f"{100 * above:.1f} % of the decoded pixels exceed WhiteLevel {white_level:g} by half or more "
+                f"(largest {largest}): the pixel data does not match its tags")
     if black >= ZERO_FILL_MIN_BLACK:
         zeros = float(np.count_nonzero(mosaic == 0)) / mosaic.size
         if zeros > ZERO_FILL_SHARE:
