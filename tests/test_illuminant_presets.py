@@ -102,3 +102,61 @@ def test_night_scenes_get_the_night_preset(shared_data):
         subset = lights[rng.choice(len(lights), size, replace=False)]
         assert _preset_of(ch.choose_illuminant_model(subset, colour, "auto").reason) == "night", size
     assert _preset_of(ch.choose_illuminant_model(lights, colour, "kernel").reason) == "night"
+
+
+def _canon5d_folder(tmp_path, count):
+    from PIL import Image
+
+    from g2r_jax.cli.convert import main as convert
+
+    renders = tmp_path / "renders"
+    renders.mkdir()
+    rng = np.random.default_rng(0)
+    for k in range(count):
+        Image.fromarray(rng.integers(30, 220, (32, 48, 3), dtype=np.uint8)).save(renders / f"r{k:02d}.png")
+    assert convert([str(renders), "--profile", "Canon5D", "-o", str(tmp_path / "dngs"), "--seed", "0", "--quiet",
+                    "--no-progress"]) == 0
+    return tmp_path / "dngs"
+
+
+@pytest.mark.slow
+def test_fit_profile_of_a_canon5d_folder_with_the_night_preset_fits_and_counts_what_it_left_out(tmp_path, capsys):
+    """The issue's failure: g2r-fit-profile of Canon5D DNGs ended with "no valid profile" because the
+    night preset has lights the 5D's one matrix cannot carry. Now it fits and says how many it left out."""
+    from g2r_jax.cli.fit_profile import main as fit_profile_cli
+
+    folder = _canon5d_folder(tmp_path, 4)
+    output = tmp_path / "p.json"
+    assert fit_profile_cli([str(folder), "-o", str(output), "--illuminant-model", "prior-night"]) == 0
+    out = capsys.readouterr().out
+    assert "no valid profile" not in out and 0 < _left_out_share(out) < P.MAX_UNREPRESENTABLE, out
+    assert 0 < _left_out_share(load_profile(output).info.provenance) < P.MAX_UNREPRESENTABLE
+
+
+@pytest.mark.slow
+def test_trial_fits_after_a_failure_print_their_warnings_once(tmp_path, capsys, monkeypatch):
+    """When the fit of all files fails, g2r-fit-profile refits without each file in turn; each trial's
+    warnings (before: the missing-NoiseProfile line once per trial, 300 lines for 300 files) are
+    shown only for the fit it keeps: one line."""
+    import warnings
+
+    from g2r_jax.cli.fit_profile import main as fit_profile_cli
+    from g2r_jax.profile import fitting
+
+    folder = _canon5d_folder(tmp_path, 5)
+    real_fit = fitting.fit_profile
+
+    def fit_that_one_file_breaks(infos, **kwargs):
+        names = sorted(str(i.path).rsplit("/", 1)[-1] for i in infos)
+        warnings.warn_explicit(f"no usable NoiseProfile (missing: {', '.join(names)})", UserWarning,
+                               fitting.__file__, 1)
+        if "r02.dng" in names:
+            raise ValueError("a fit-breaking file")
+        return real_fit(infos, **kwargs)
+
+    monkeypatch.setattr(fitting, "fit_profile", fit_that_one_file_breaks)
+    assert fit_profile_cli([str(folder), "-o", str(tmp_path / "p.json")]) == 1
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if "no usable NoiseProfile" in line]
+    assert len(lines) == 1 and "r02.dng" not in lines[0], err
+    assert "r02.dng: dropped" in err

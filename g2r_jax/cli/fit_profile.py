@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 from g2r_jax.cli.common import (
@@ -38,14 +39,16 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--calibration", type=Path, metavar="DNG|JSON",
                         help="DNG (or profile JSON) giving the colour matrices, CFA and levels (with --illuminants)")
     parser.add_argument("--illuminant-model", default="auto",
-                        choices=["auto", "kernel", "gaussian", "mixture", "locus", "prior", "prior-night",
+                        choices=["auto", "kernel", "pooled", "gaussian", "mixture", "locus", "prior", "prior-night",
                                  "prior-day-night"],
                         help="auto: 'kernel' from 10 measured illuminants on (a kernel density of the lights along "
                              "the camera's Planckian locus, blended with the cross-camera prior; chosen by the "
                              "downstream measurement of docs validation/illuminant_models), else 'prior'; "
                              "'gaussian': the published Gaussian + convex hull; 'mixture': Gaussians by BIC + hull; "
                              "'prior': the camera-independent prior of measured day lights (-night / -day-night "
-                             "presets); 'locus': the A-D65 CCT locus of the calibration matrices (supplement S3)")
+                             "presets); 'pooled': the lights' kernel density on other cameras' measured lights "
+                             "carried through this camera's matrices; 'locus': the A-D65 CCT locus of the "
+                             "calibration matrices (supplement S3)")
     parser.add_argument("--noise-table", type=Path, metavar="CSV",
                         help="noise calibration CSV (iso,cfa_channel_index,beta1_shot,beta2_read; DN incl. black)")
     parser.add_argument("--sensitivities", type=Path, metavar="FILE",
@@ -139,7 +142,7 @@ def _read_folder_infos(args, failures):
     from g2r_jax.io.images import list_inputs
     from g2r_jax.profile.fitting import check_file_colour
 
-    paths, infos = [], []
+    paths, infos, warned = [], [], {}
     for item in args.dng_dirs:
         try:
             paths += list_inputs([item], (".dng",))
@@ -149,12 +152,21 @@ def _read_folder_infos(args, failures):
         try:   # every check of one file's tags happens here, before any folder-wide solver
             info = check_file_colour(require_bayer_cfa(require_colour_tags(read_dng_info(path))))
             for warning in info.warnings:
-                print(f"g2r-fit-profile: warning: {one_line(f'{shown(path)}: {warning}')}", file=sys.stderr)
+                warned.setdefault(warning, []).append(shown(path))
             infos.append(info)
         except Exception as error:  # noqa: BLE001 - report and go on
             failures.append(error_message(error) if str(path) in str(error) else
                             one_line(f"{path}: {error_message(error)}"))
+    for warning, names in warned.items():   # one line per kind of problem, naming its files
+        print(f"g2r-fit-profile: warning: {one_line(f'{warning}: {files_named(names)}')}", file=sys.stderr)
     return _one_camera(infos, failures, getattr(args, "quiet", False))
+
+
+def files_named(names, shown_at_most: int = 10) -> str:
+    """'N file(s): a, b, ... and M more': the files one warning line is about."""
+    listed = ", ".join(names[:shown_at_most]) + (f" and {len(names) - shown_at_most} more" if len(names) > shown_at_most
+                                                 else "")
+    return f"{len(names)} file(s): {listed}"
 
 
 def _gather_inputs(args, failures):
@@ -265,10 +277,18 @@ def body(args) -> int:
     if noise is not None:
         source += f"; noise from {args.noise_table.name}"
     dark_frame_notes = []   # the last fit's lines on dark frames (`fit_profile(notes=...)`)
+    fit_warnings = {}       # each trial fit's warnings: only the kept fit's are shown (not one per trial)
 
     def attempt(subset, chromaticities_subset):
         """Fit and validate with the loader's own checks (nothing is written yet)."""
         notes = []
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            fitted = _fit_and_validate(subset, chromaticities_subset, notes)
+        fit_warnings[tuple(i.path for i in subset)] = caught
+        return fitted
+
+    def _fit_and_validate(subset, chromaticities_subset, notes):
         fitted = fit_profile(subset, name=args.name or args.output.stem, illuminant_model=args.illuminant_model,
                              noise=noise, chromaticities=chromaticities_subset,
                              provenance=f"g2r-fit-profile: {source}", seed=args.seed, notes=notes)
@@ -277,6 +297,8 @@ def body(args) -> int:
         return fitted
 
     profile, infos = _fit_dropping_bad_files(attempt, infos, chromaticities, failures)
+    for record in fit_warnings.get(tuple(i.path for i in infos), ()):
+        warnings.warn_explicit(record.message, record.category, record.filename, record.lineno)
     if chromaticities is None:
         note = levels_from_infos(infos)[2]
         if note and not args.quiet:
