@@ -1,0 +1,226 @@
+"""The content model (issue 32) on the NUS illuminant-estimation test: estimators trained on
+g2r_jax RAW of the CARLA frames with and without the content model fitted to each camera's real
+training images (without their labels), UPI on the same content, and real training.
+
+Protocol, per camera and seed (the 3 folds of the downstream benchmark, `g2r_jax.measure.folds_of`):
+- the lights are fitted to the training folds' measured illuminants ('fitted' of the downstream
+  benchmark: what a folder of DNGs gives `g2r-fit-profile`);
+- the family of the content model is chosen on the training folds only: they are split again
+  (two thirds / one third, seeded, duplicate files kept together); each candidate family is fitted to the inner two thirds'
+  thumbnails (white-balanced by their light, as a DNG's AsShotNeutral would), g2r_jax RAW of the
+  CG views is made with it under lights fitted to the same two thirds, the selection estimator is
+  trained on it and tested on the inner third; the family with the lowest mean error is kept
+  ('identity' is a candidate), then refitted to all training folds' thumbnails. Candidates:
+  'chroma' and 'chroma_tone' fitted to the statistics (no labels), 'chroma@S' a given chroma
+  scale S (its choice uses the training folds' labels, through the inner third's errors);
+- rows: fitted (no content model), fitted+content, upi, upi+content (UPI on the same adapted
+  views, re-encoded to sRGB), real (the training folds); each estimator trained on each row and
+  tested on the test fold's real images (angular error, degrees). The test images are used for
+  nothing else.
+
+    python benchmarks/content_model.py [--cameras Canon600D,NikonD40] [--seeds 1] [--n 300]
+        [--estimators cnn,moments] [--families chroma,chroma_tone,chroma@0.5] [--select-estimator moments]
+        [--jobs 1] [--json out/content_model.json] [--markdown out/content_model.md]
+
+Data: ../shared/data/estimation/nus/<camera>.npz and ../shared/data/cg/carla/*.png (as
+benchmarks/downstream_nus.py, whose camera profiles it uses).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from downstream_nus import CAMERAS, CARLA, NUS, camera_profile  # noqa: E402
+
+ROWS = ("fitted", "fitted+content", "upi", "upi+content", "real")
+
+
+def _say(message: str) -> None:
+    print(f"  {time.strftime('%H:%M:%S')} {message}", file=sys.stderr, flush=True)
+
+
+def _adapted(model, views):
+    import jax
+
+    from g2r_jax.content import apply
+
+    run = jax.jit(apply)
+    return np.concatenate([np.asarray(run(model, views[i:i + 100])) for i in range(0, len(views), 100)])
+
+
+def _fit(family, images, lights, views, profile):
+    """The content model of `family` fitted to real thumbnails (white-balanced by `lights`) and a
+    sample of the CG views, in the camera's white-balanced RGB at the median light; 'chroma@S' is
+    a chroma scale S given, not fitted (a candidate the selection on training folds may keep)."""
+    from g2r_jax import content
+
+    if family.startswith("chroma@"):
+        return content.content_model(float(family.split("@")[1]), family="chroma", source="given")
+    real = content.statistics(content.white_balanced_camera_rgb(images, lights), source="training folds")
+    neutral = np.median(lights / lights[:, 1:2], axis=0)
+    to_camera = content.srgb_to_camera_matrices(neutral[None], profile.colour)[0]
+    return content.fit_content_model(real, family=family, cg_sample=views, to_camera=to_camera)
+
+
+def _select_family(families, real, train, views, profile, estimator, seed, fold):
+    """The family whose g2r_jax set trains `estimator` best on an inner third of `train`."""
+    from g2r_jax.downstream import experiment, training_sets
+    from g2r_jax.downstream.estimators import train_estimator
+    from g2r_jax.measure import angular_error_degrees, folds_of
+
+    groups = getattr(real, "groups", None)
+    inner = folds_of(len(train), 3, 10_000 + 100 * seed + fold, groups=None if groups is None else groups[train])
+    inner_val, inner_train = train[inner[0]], np.setdiff1d(train, train[inner[0]])
+    lights = real.illuminants[inner_train]
+    fitted = experiment.fitted_illuminants(profile, lights, "auto", seed)
+    errors = {}
+    for family in ("identity",) + tuple(families):
+        model = _fit(family, real.images[inner_train], lights, views, profile)
+        images, labels = training_sets.g2r_set(_adapted(model, views), fitted, 7_000 + 1000 * seed + fold)
+        predict = train_estimator(estimator, images, labels, seed=1000 * seed + fold)
+        errors[family] = float(np.mean(angular_error_degrees(predict(real.images[inner_val]),
+                                                             real.illuminants[inner_val])))
+    return min(errors, key=errors.get), errors
+
+
+def _row_sets(real, train, views, srgb_views, model, fitted, seed, fold):
+    from g2r_jax.downstream import training_sets
+
+    adapted = _adapted(model, views)
+    salt = 1000 * seed + 10 * fold + 4
+    return {"fitted": lambda: training_sets.g2r_set(views, fitted, salt),
+            "fitted+content": lambda: training_sets.g2r_set(adapted, fitted, salt),
+            "upi": lambda: training_sets.upi_set(srgb_views, seed + 1),
+            "upi+content": lambda: training_sets.upi_set(training_sets.linear_to_srgb_views(adapted), seed + 1),
+            "real": lambda: (real.images[train], real.illuminants[train])}
+
+
+def run_camera(job) -> dict:
+    """One camera: errors per (row, estimator) per seed, and the models chosen per fold."""
+    from PIL import Image
+
+    from g2r_jax.downstream import experiment, real_sets, training_sets
+    from g2r_jax.downstream.estimators import train_estimator
+    from g2r_jax.measure import angular_error_degrees, folds_of
+    from g2r_jax.runtime import compile_cache
+
+    compile_cache.enable(program="g2r_jax-downstream")
+    name, estimators, seeds, n, families, select_estimator = job
+    start = time.perf_counter()
+    linear = training_sets.linear_images([np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))])
+    real = real_sets.load_nus(NUS / f"{name}.npz")
+    profile = camera_profile(name)
+    errors = {f"{r}/{e}": [] for r in ROWS for e in estimators}
+    chosen = []
+    for seed in range(seeds):
+        views = training_sets.cg_views(linear, n, seed)
+        srgb_views = training_sets.linear_to_srgb_views(views)
+        parts = {key: [] for key in errors}
+        for fold, test in enumerate(folds_of(len(real.images), 3, 0, groups=getattr(real, "groups", None))):
+            train = np.setdiff1d(np.arange(len(real.images)), test)
+            family, selection = _select_family(families, real, train, views, profile, select_estimator, seed, fold)
+            model = _fit(family, real.images[train], real.illuminants[train], views, profile)
+            chosen.append({"seed": seed, "fold": fold, "family": family, "selection_errors": selection,
+                           "chroma_scale": float(model.chroma_scale), "tone_power": float(model.tone_power)})
+            fitted = experiment.fitted_illuminants(profile, real.illuminants[train], "auto", seed)
+            for row, build in _row_sets(real, train, views, srgb_views, model, fitted, seed, fold).items():
+                images, labels = build()
+                for estimator in estimators:
+                    predict = train_estimator(estimator, images, labels, seed=1000 * seed + fold)
+                    parts[f"{row}/{estimator}"].append(
+                        angular_error_degrees(predict(real.images[test]), real.illuminants[test]))
+            _say(f"{name}: seed {seed} fold {fold + 1}/3: {family} (s {float(model.chroma_scale):.3f}, "
+                 f"p {float(model.tone_power):.3f}; selection {selection}) ({time.perf_counter() - start:.0f} s)")
+        for key, values in parts.items():
+            errors[key].append(np.concatenate(values).tolist())
+    return {"camera": name, "errors": errors, "chosen": chosen, "seconds": time.perf_counter() - start}
+
+
+def _mean(result, row, estimator) -> float:
+    return float(np.mean(np.concatenate(result["errors"][f"{row}/{estimator}"])))
+
+
+def tables(results: dict, estimators) -> str:
+    """Markdown: per estimator, each camera's mean error per row, the ratios to real training and
+    the lead over UPI on the same content; then the mean of cameras."""
+    out = []
+    for e in estimators:
+        out += [f"**{e}** (mean angular error, degrees, pooled over seeds and folds)", "",
+                "| camera | " + " | ".join(ROWS) + " | fitted / real | fitted+content / real | "
+                "fitted+content vs upi+content | families kept (s, p) |", "|---|" + "---|" * (len(ROWS) + 4)]
+        means = {name: {r: _mean(res, r, e) for r in ROWS} for name, res in results.items()}
+        for name, m in means.items():
+            kept = ", ".join(f"{c['family']} ({c['chroma_scale']:.2f}, {c['tone_power']:.2f})" for c in results[name]["chosen"])
+            out.append(f"| {name} | " + " | ".join(f"{m[r]:.2f}" for r in ROWS)
+                       + f" | {m['fitted'] / m['real']:.2f}x | {m['fitted+content'] / m['real']:.2f}x"
+                       + f" | {100 * (1 - m['fitted+content'] / m['upi+content']):+.0f} % | {kept} |")
+        mean = {r: float(np.mean([m[r] for m in means.values()])) for r in ROWS}
+        out.append("| **mean of cameras** | " + " | ".join(f"{mean[r]:.2f}" for r in ROWS)
+                   + f" | {mean['fitted'] / mean['real']:.2f}x | {mean['fitted+content'] / mean['real']:.2f}x"
+                   + f" | {100 * (1 - mean['fitted+content'] / mean['upi+content']):+.0f} % | |")
+        out.append("")
+    return "\n".join(out)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--cameras", default=",".join(CAMERAS))
+    parser.add_argument("--estimators", default="cnn,moments")
+    parser.add_argument("--seeds", type=int, default=1)
+    parser.add_argument("--n", type=int, default=300)
+    parser.add_argument("--families", default="chroma,chroma_tone,chroma@0.65,chroma@0.5,chroma@0.35",
+                        help="candidates besides 'identity': chroma and chroma_tone fitted from the statistics, "
+                        "chroma@S a chroma scale S given")
+    parser.add_argument("--select-estimator", default="moments", help="the estimator that chooses the family")
+    parser.add_argument("--jobs", type=int, default=1, help="cameras run in this many processes at once")
+    parser.add_argument("--json", type=Path)
+    parser.add_argument("--markdown", type=Path)
+    args = parser.parse_args(argv)
+    if not NUS.is_dir() or not CARLA.is_dir():
+        print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
+        return 2
+    cameras, estimators = args.cameras.split(","), tuple(args.estimators.split(","))
+    jobs = [(c, estimators, args.seeds, args.n, tuple(args.families.split(",")), args.select_estimator) for c in cameras]
+    start = time.perf_counter()
+    results = {}
+    if args.jobs > 1:
+        import multiprocessing
+
+        with multiprocessing.get_context("spawn").Pool(args.jobs) as pool:
+            for result in pool.imap(run_camera, jobs):
+                results[result["camera"]] = result
+    else:
+        for job in jobs:
+            result = run_camera(job)
+            results[result["camera"]] = result
+            if args.json:   # what has finished so far, in case the run is cut short
+                _write_json(args.json, results, args, time.perf_counter() - start)
+    text = tables(results, estimators) + f"\nTotal {(time.perf_counter() - start) / 60:.1f} min.\n"
+    print(text)
+    if args.markdown:
+        args.markdown.parent.mkdir(parents=True, exist_ok=True)
+        args.markdown.write_text(text)
+    if args.json:
+        _write_json(args.json, results, args, time.perf_counter() - start)
+    return 0
+
+
+def _write_json(path: Path, results, args, seconds) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    document = {"seconds": seconds, "n": args.n, "seeds": args.seeds, "families": args.families,
+                "select_estimator": args.select_estimator, "cameras": results}
+    temporary = path.with_suffix(".tmp")
+    temporary.write_text(json.dumps(document))
+    temporary.replace(path)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

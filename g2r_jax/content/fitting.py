@@ -1,0 +1,109 @@
+"""Fitting the content model from statistics of real and CG images, without labels.
+
+Each parameter takes the median of one per-image statistic (`scene_statistics`) of the CG images
+to that of the real images, in the camera's white-balanced RGB:
+- `chroma_scale` s from the median log-chroma spread, `tone_power` p (family 'chroma_tone') from
+  the median brightness under the peak;
+- with a sample of the CG images at hand, each by bisection on the statistic of the transformed
+  sample (both statistics are monotone in their parameter); with medians only, by the
+  small-chroma approximation s = real spread / CG spread (log(Y + s d) - log Y ~ s d / Y) and
+  p = log(real brightness) / log(CG brightness) (a power p takes a brightness b to about b^p).
+Without real images the real medians come from the prior of real scenes
+(`prior.REAL_SCENES`); without CG statistics, from the reference CG set (`prior.REFERENCE_CG`).
+"""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+
+from g2r_jax.content import prior as _prior
+from g2r_jax.content.model import FAMILIES, ContentModel, apply, content_model, identity
+from g2r_jax.content.scene_statistics import SIZE, ContentStatistics, _area_average, statistics
+
+_MEDIANS = ("chroma_spread", "brightness")
+_BISECTION_STEPS = 24
+_apply = jax.jit(apply)
+
+
+def _medians(stats, fallback: dict, what: str) -> tuple[dict, str]:
+    if stats is None:
+        return dict(fallback["medians"]), fallback["source"]
+    if isinstance(stats, ContentStatistics):
+        if len(stats) == 0:
+            raise ValueError(f"{stats.source or what}: no images to fit the content model to")
+        return {k: stats.median(k) for k in _MEDIANS}, stats.source or what
+    missing = [k for k in _MEDIANS if k not in stats]
+    if missing:
+        raise ValueError(f"{what} medians lack {', '.join(missing)}")
+    return {k: float(stats[k]) for k in _MEDIANS}, what
+
+
+def _transformed_median(sample, to_camera, name: str, scale: float, power: float) -> float:
+    adapted = np.asarray(_apply(content_model(scale, power, family="chroma_tone"), sample), np.float64)
+    return statistics(np.maximum(adapted @ to_camera.T, 0.0)).median(name)
+
+
+def _bisect(increasing, target: float, low: float, high: float) -> float:
+    """The x in [low, high] where the increasing function reaches `target` (an end if it never does)."""
+    if increasing(high) <= target:
+        return high
+    if increasing(low) >= target:
+        return low
+    for _ in range(_BISECTION_STEPS):
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if increasing(middle) < target else (low, middle)
+    return 0.5 * (low + high)
+
+
+def _parameters_from_sample(real: dict, sample, to_camera, family: str) -> tuple[float, float]:
+    sample = _area_average(np.asarray(sample, np.float32), SIZE).astype(np.float32)
+    to_camera = np.eye(3) if to_camera is None else np.asarray(to_camera, np.float64)
+    scale = _bisect(lambda s: _transformed_median(sample, to_camera, "chroma_spread", s, 1.0),
+                    real["chroma_spread"], 0.0, 1.0)
+    if family != "chroma_tone":
+        return scale, 1.0
+    # brightness falls as the power rises: bisect on its negative
+    power = _bisect(lambda p: -_transformed_median(sample, to_camera, "brightness", scale, p),
+                    -real["brightness"], 0.25, 4.0)
+    return scale, power
+
+
+def _parameters_from_medians(real: dict, cg: dict, family: str) -> tuple[float, float]:
+    scale = float(np.clip(real["chroma_spread"] / cg["chroma_spread"], 0.0, 1.0))
+    if family != "chroma_tone":
+        return scale, 1.0
+    if not (real["brightness"] < 1 and cg["brightness"] < 1):
+        raise ValueError("cannot fit the tone power: a median brightness is 1 (every pixel at the peak)")
+    return scale, float(np.clip(np.log(real["brightness"]) / np.log(cg["brightness"]), 0.25, 4.0))
+
+
+def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str = "chroma", cg_sample=None,
+                      to_camera=None) -> ContentModel:
+    """The content model of `family` (`model.FAMILIES`) that takes the CG images' statistics to
+    the real images'.
+
+    **Arguments:** `real_statistics`: a `ContentStatistics` of the camera's real images in its
+    white-balanced RGB (`real_images.white_balanced_camera_rgb`), a dict of medians, or None for
+    the prior of real scenes; `cg_statistics`: the same for the CG images to convert, or None for
+    the reference CG set; `cg_sample`: optionally CG images in linear sRGB (N, H, W, 3), H, W >=
+    64 (then the parameters are found by bisection on the transformed sample, and
+    `cg_statistics` is not used); `to_camera`: (3, 3) linear sRGB -> the camera's white-balanced
+    RGB for `cg_sample` (`real_images.srgb_to_camera_matrices`; default: the identity).
+    **Returns:** a `ContentModel`, its `target` the real medians it was fitted to.
+    """
+    if family not in FAMILIES:
+        raise ValueError(f"unknown content family {family!r}; expected one of {', '.join(FAMILIES)}")
+    if family == "identity":
+        return identity()
+    real, real_source = _medians(real_statistics, _prior.REAL_SCENES, "real images")
+    if cg_sample is not None:
+        scale, power = _parameters_from_sample(real, cg_sample, to_camera, family)
+        cg_source = f"a sample of {len(cg_sample)} CG images"
+    else:
+        cg, cg_source = _medians(cg_statistics, _prior.REFERENCE_CG, "CG images")
+        for name, value in {**real, **{f"CG {k}": v for k, v in cg.items()}}.items():
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"cannot fit the content model: median {name} is {value!r}")
+        scale, power = _parameters_from_medians(real, cg, family)
+    return content_model(scale, power, family=family, source=f"{real_source} vs {cg_source}", target=real)

@@ -1,0 +1,72 @@
+"""The content model: a transform of a CG image in scene-linear light (linear sRGB, before the
+camera sees it) that brings its content statistics toward those of the camera's real scenes.
+
+`apply(model, linear)` is pure JAX (jit, vmap, grad). Two parameters, each the identity at 1:
+- `chroma_scale` s: every pixel's chroma scaled toward its luminance, x' = Y + s (x - Y), Y the
+  luminance of linear sRGB (IEC 61966-2-1 Y row): a convex combination for s in [0, 1], so
+  non-negative pixels stay non-negative and neutral pixels (and Y) are unchanged. Real
+  white-balanced scenes are about half as colourful as CG renders (issue 32; `statistics`).
+- `tone_power` p: x' = peak (x / peak)^p, the image's peak kept: p > 1 darkens the body under
+  its highlights (more dynamic range below the peak), p < 1 brightens it.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from g2r_jax.content.scene_statistics import LUMINANCE
+
+FAMILIES = {
+    "identity": "no change",
+    "chroma": "chroma scaled toward luminance (s from the chroma spread)",
+    "chroma_tone": "chroma scaled toward luminance, then a power on the brightness under the peak",
+}
+
+
+class ContentModel(eqx.Module):
+    """Parameters of the content transform (a pytree: a jit argument) and the family it was fitted
+    as (static). Build with `fit_content_model`, `identity` or `content_from_dict`."""
+
+    chroma_scale: Float[Array, ""]
+    tone_power: Float[Array, ""]
+    family: str = eqx.field(static=True, default="identity")
+    source: str = eqx.field(static=True, default="")
+    target: tuple = eqx.field(static=True, default=())   # ((statistic, real median), ...) it was fitted to
+    apply_by_default: bool = eqx.field(static=True, default=False)   # conversion applies it unless told not to
+
+
+def content_model(chroma_scale: float = 1.0, tone_power: float = 1.0, *, family: str = "chroma",
+                  source: str = "", target: dict | None = None, apply_by_default: bool = False) -> ContentModel:
+    """A `ContentModel` from its parameters (checked: s in [0, 1], p in [0.25, 4])."""
+    if family not in FAMILIES:
+        raise ValueError(f"unknown content family {family!r}; expected one of {', '.join(FAMILIES)}")
+    if not (np.isfinite(chroma_scale) and 0.0 <= chroma_scale <= 1.0):
+        raise ValueError(f"content chroma_scale {chroma_scale!r} must be in [0, 1] (1 = unchanged)")
+    if not (np.isfinite(tone_power) and 0.25 <= tone_power <= 4.0):
+        raise ValueError(f"content tone_power {tone_power!r} must be in [0.25, 4] (1 = unchanged)")
+    return ContentModel(chroma_scale=jnp.float32(chroma_scale), tone_power=jnp.float32(tone_power), family=family,
+                        source=source, target=tuple(sorted((target or {}).items())),
+                        apply_by_default=bool(apply_by_default))
+
+
+def identity() -> ContentModel:
+    """The model that changes nothing."""
+    return content_model(1.0, 1.0, family="identity", source="identity")
+
+
+def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"]) -> Float[Array, "*batch H W 3"]:
+    """The content transform of one image (H, W, 3) or a batch (..., H, W, 3) in linear sRGB
+    (values >= 0). The identity model returns its input bit for bit. **Returns:** float32, same
+    shape, >= 0, each image's peak unchanged by the tone power."""
+    x = jnp.asarray(linear, jnp.float32)
+    luminance = (x @ jnp.asarray(LUMINANCE, jnp.float32))[..., None]
+    s = jnp.asarray(model.chroma_scale, jnp.float32)
+    x = x + (s - 1.0) * (x - luminance)                     # = Y + s (x - Y); exactly x at s = 1
+    p = jnp.asarray(model.tone_power, jnp.float32)
+    peak = jnp.max(x, axis=(-3, -2, -1), keepdims=True)
+    safe_peak = jnp.where(peak > 0, peak, 1.0)
+    toned = safe_peak * jnp.power(jnp.clip(x / safe_peak, 0.0, None), p)
+    return jnp.where(p == 1.0, x, toned)

@@ -1,0 +1,77 @@
+"""Priors for fitting the content model without a camera's own files.
+
+`REAL_SCENES`: medians of the content statistics of real white-balanced scenes, measured on the
+NUS 8-camera colour-constancy set (Cheng, Prasad, Brown, JOSA A 2014; nine cameras, 1,853 raw
+thumbnails as republished with the DMCC repository, ../shared/data/PROVENANCE.md), each camera's
+thumbnails white-balanced by their measured illuminant (as a DNG's AsShotNeutral would) in the
+camera's own RGB; the median of the nine cameras' medians. `REFERENCE_CG`: the same statistics
+of the 343 CARLA frames (../shared/data/cg/carla, whole frames decoded from sRGB), taken into each
+NUS camera's white-balanced RGB at its median measured light through its Adobe DNG ColorMatrix
+pair (../shared/data/cameras/color_matrices.json); the median of the nine. Both are recomputed from the data by
+`measure_real_scenes` and `measure_reference_cg` (tests/test_content.py checks the numbers
+below against them when the data is present).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+REAL_SCENES = {"medians": {"chroma_spread": 0.22400, "brightness": 0.11634},
+               "source": "prior: NUS 8-camera set, nine cameras (median of per-camera medians)"}
+REFERENCE_CG = {"medians": {"chroma_spread": 0.14527, "brightness": 0.31836},
+                "source": "reference CG: 343 CARLA frames"}
+NUS_CAMERAS = ("Canon1DsMkIII", "Canon600D", "FujifilmXM1", "NikonD40", "NikonD5200", "OlympusEPL6",
+               "PanasonicGX1", "SamsungNX2000", "SonyA57")
+
+
+def nus_colour_model(matrices_json: Path, camera: str):
+    """A NUS camera's DNG colour model from its Adobe ColorMatrix pair (StdA, D65)."""
+    import json
+
+    from g2r_jax.colour.dng_model import DngColourModel
+
+    tags = json.loads(Path(matrices_json).read_text())[camera]
+    return DngColourModel.from_tags((17, 21), (np.reshape(tags["ColorMatrix_StandardLightA_tag17"], (3, 3)),
+                                               np.reshape(tags["ColorMatrix_D65_tag21"], (3, 3))))
+
+
+def nus_statistics(data: Path, camera: str):
+    """`ContentStatistics` of one NUS camera's thumbnails (white-balanced by their measured light)."""
+    from g2r_jax.content.real_images import white_balanced_camera_rgb
+    from g2r_jax.content.scene_statistics import statistics
+
+    images, lights = _nus(data, camera)
+    return statistics(white_balanced_camera_rgb(images, lights), source=f"NUS {camera}")
+
+
+def _nus(data: Path, camera: str):
+    with np.load(Path(data) / "estimation" / "nus" / f"{camera}.npz") as npz:
+        return np.asarray(npz["images"]), np.asarray(npz["illuminants"], np.float64)
+
+
+def measure_real_scenes(data: Path) -> dict:
+    """`REAL_SCENES`'s medians recomputed from ../shared/data (`data`)."""
+    per_camera = [nus_statistics(data, camera).medians() for camera in NUS_CAMERAS]
+    return {k: float(np.median([m[k] for m in per_camera])) for k in per_camera[0]}
+
+
+def measure_reference_cg(data: Path) -> dict:
+    """`REFERENCE_CG`'s medians recomputed from the CARLA frames in ../shared/data (`data`)."""
+    from PIL import Image
+
+    from g2r_jax.colour.conversions import srgb_decode_lut
+    from g2r_jax.content.real_images import srgb_to_white_balanced_camera
+    from g2r_jax.content.scene_statistics import SIZE, _area_average, statistics
+
+    table = srgb_decode_lut("srgb")
+    frames = np.stack([_area_average(table[np.asarray(Image.open(f).convert("RGB"))][None].astype(np.float64), SIZE)[0]
+                       for f in sorted((Path(data) / "cg" / "carla").glob("*.png"))])
+    per_camera = []
+    for camera in NUS_CAMERAS:
+        _, lights = _nus(data, camera)
+        colour = nus_colour_model(Path(data) / "cameras" / "color_matrices.json", camera)
+        neutral = np.median(lights / lights[:, 1:2], axis=0)
+        per_camera.append(statistics(srgb_to_white_balanced_camera(frames, neutral, colour)).medians())
+    return {k: float(np.median([m[k] for m in per_camera])) for k in per_camera[0]}

@@ -1,0 +1,62 @@
+"""A profile's optional `content` block (JSON) <-> `ContentModel`.
+
+    "content": {"family": "chroma", "chroma_scale": 0.5, "tone_power": 1.0, "apply_by_default": false,
+                "target": {"chroma_spread": 0.21, "brightness": 0.1}, "source": "..."}
+
+`apply_by_default` says whether conversion applies the model when not told (see the validation
+page, docs/pages/validation/content_model.md, for why it is off unless measured to help).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+from g2r_jax.content.model import FAMILIES, ContentModel, content_model
+
+_KEYS = {"family", "chroma_scale", "tone_power", "apply_by_default", "target", "source"}
+
+
+def content_to_dict(model: ContentModel) -> dict:
+    """The `content` block of a profile document."""
+    return {"family": model.family, "chroma_scale": float(model.chroma_scale), "tone_power": float(model.tone_power),
+            "apply_by_default": bool(model.apply_by_default), "target": {k: float(v) for k, v in model.target},
+            "source": model.source}
+
+
+def _raise(where: str, problem: str):
+    raise ValueError(f"{where}: {problem}")
+
+
+def _number(document: dict, key: str, fail) -> float:
+    value = document.get(key, 1.0)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        fail(f"content.{key}", f"expected a finite number, got {value!r}")
+    return float(value)
+
+
+def content_from_dict(document, fail: Callable[[str, str], None] = _raise) -> ContentModel:
+    """The `ContentModel` of a profile's `content` block; `fail(where, problem)` raises (the
+    profile reader's, which names the file)."""
+    if not isinstance(document, dict):
+        fail("content", f"expected a JSON object, got {type(document).__name__}")
+    unknown = sorted(set(document) - _KEYS)
+    if unknown:
+        fail("content", f"unknown keys {unknown}; expected some of {sorted(_KEYS)}")
+    family = document.get("family")
+    if family not in FAMILIES:
+        fail("content.family", f"unknown family {family!r}; expected one of {', '.join(FAMILIES)}")
+    scale, power = _number(document, "chroma_scale", fail), _number(document, "tone_power", fail)
+    target = document.get("target", {})
+    if not isinstance(target, dict) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                               for v in target.values()):
+        fail("content.target", "expected an object of numbers (the real medians the model was fitted to)")
+    by_default = document.get("apply_by_default", False)
+    if not isinstance(by_default, bool):
+        fail("content.apply_by_default", f"expected true or false, got {by_default!r}")
+    try:
+        model = content_model(scale, power, family=family, source=str(document.get("source", "")),
+                              target={str(k): float(v) for k, v in target.items()}, apply_by_default=by_default)
+    except ValueError as error:
+        fail("content", str(error))
+    return model

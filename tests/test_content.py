@@ -1,0 +1,155 @@
+"""The content model (g2r_jax.content): statistics, the transform, fitting without labels, JSON."""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from g2r_jax import content
+from g2r_jax.content import prior
+from g2r_jax.content.scene_statistics import LUMINANCE
+
+
+def _colourful(n=12, size=64, seed=0):
+    """Linear sRGB images of random coloured blocks (8 x 8 pixels each) on a random brightness."""
+    rng = np.random.default_rng(seed)
+    blocks = rng.uniform(0.05, 1.0, (n, size // 8, size // 8, 3))
+    return np.repeat(np.repeat(blocks, 8, 1), 8, 2).astype(np.float32)
+
+
+def test_identity_returns_its_input_bit_for_bit():
+    images = _colourful()
+    assert np.array_equal(np.asarray(content.apply(content.identity(), images)), images)
+
+
+def test_chroma_scale_keeps_luminance_and_neutrals_and_greys_at_zero():
+    images = _colourful()
+    half = np.asarray(content.apply(content.content_model(0.5), images))
+    np.testing.assert_allclose(half @ LUMINANCE, images @ LUMINANCE, rtol=1e-5, atol=1e-6)
+    assert half.min() >= 0
+    grey = np.full((1, 64, 64, 3), 0.3, np.float32)
+    np.testing.assert_allclose(content.apply(content.content_model(0.2), grey), grey, rtol=1e-6)
+    none = np.asarray(content.apply(content.content_model(0.0), images))
+    np.testing.assert_allclose(none[..., 0], none[..., 2], rtol=1e-5)
+    np.testing.assert_allclose(half - (images @ LUMINANCE)[..., None],
+                               0.5 * (images - (images @ LUMINANCE)[..., None]), atol=1e-6)
+
+
+def test_tone_power_keeps_the_peak_and_darkens_the_body():
+    images = _colourful()
+    darker = np.asarray(content.apply(content.content_model(1.0, 2.0, family="chroma_tone"), images))
+    np.testing.assert_allclose(darker.max(axis=(1, 2, 3)), images.max(axis=(1, 2, 3)), rtol=1e-6)
+    assert np.all(darker.mean(axis=(1, 2, 3)) < images.mean(axis=(1, 2, 3)))
+
+
+def test_apply_jits_and_vmaps_with_the_model_as_an_argument():
+    images = jnp.asarray(_colourful(4))
+    run = jax.jit(jax.vmap(content.apply, in_axes=(None, 0)))
+    np.testing.assert_allclose(run(content.content_model(0.4), images),
+                               content.apply(content.content_model(0.4), images), rtol=1e-6)
+
+
+def test_bad_parameters_are_refused_with_their_name():
+    with pytest.raises(ValueError, match="chroma_scale"):
+        content.content_model(1.5)
+    with pytest.raises(ValueError, match="tone_power"):
+        content.content_model(1.0, 0.0)
+    with pytest.raises(ValueError, match="family"):
+        content.fit_content_model(family="hue_magic")
+
+
+def test_chroma_spread_of_grey_is_zero_and_scales_with_small_chroma():
+    grey = np.broadcast_to(np.linspace(0.05, 1.0, 64, dtype=np.float32)[None, :, None, None], (2, 64, 64, 3))
+    assert content.statistics(grey).median("chroma_spread") == pytest.approx(0.0, abs=1e-9)
+    images = _colourful(20, seed=1)
+    mild = np.asarray(content.apply(content.content_model(0.2), images))
+    milder = np.asarray(content.apply(content.content_model(0.1), images))
+    ratio = content.statistics(milder).median("chroma_spread") / content.statistics(mild).median("chroma_spread")
+    assert ratio == pytest.approx(0.5, rel=0.1)
+
+
+def test_statistics_count_dark_and_clipped_pixels():
+    image = np.full((1, 64, 64, 3), 0.2, np.float32)
+    image[0, :16] = 0.001          # a quarter dark
+    image[0, 16:24] = 1.0          # an eighth at the peak
+    stats = content.statistics(image)
+    assert stats.values["dark_share"][0] == pytest.approx(0.25)
+    assert stats.values["clipped_share"][0] == pytest.approx(0.125)
+    with pytest.raises(ValueError, match="non-finite"):
+        content.statistics(np.full((1, 64, 64, 3), np.nan, np.float32), source="bad.dng")
+    with pytest.raises(ValueError, match="too small|H, W >= 64"):
+        content.statistics(np.zeros((1, 32, 32, 3), np.float32))
+
+
+def test_fit_recovers_the_chroma_scale_that_made_the_real_images():
+    cg = _colourful(40, seed=2)
+    real = np.asarray(content.apply(content.content_model(0.45), _colourful(40, seed=3)))
+    model = content.fit_content_model(content.statistics(real), cg_sample=cg)
+    assert model.family == "chroma"
+    assert float(model.chroma_scale) == pytest.approx(0.45, abs=0.05)
+    by_medians = content.fit_content_model(content.statistics(real), content.statistics(cg))
+    assert float(by_medians.chroma_scale) == pytest.approx(0.45, abs=0.1)
+
+
+def test_fit_never_adds_colour():
+    cg = np.asarray(content.apply(content.content_model(0.3), _colourful(20, seed=4)))
+    model = content.fit_content_model(content.statistics(_colourful(20, seed=5)), cg_sample=cg)
+    assert float(model.chroma_scale) == 1.0
+
+
+def test_tone_fit_matches_the_brightness():
+    cg = _colourful(30, seed=6)
+    real = np.asarray(content.apply(content.content_model(1.0, 1.8, family="chroma_tone"), _colourful(30, seed=7)))
+    model = content.fit_content_model(content.statistics(real), family="chroma_tone", cg_sample=cg)
+    assert float(model.tone_power) == pytest.approx(1.8, abs=0.15)
+
+
+def test_without_images_the_priors_are_used_and_named():
+    model = content.fit_content_model(None, None)
+    assert "NUS" in model.source and "CARLA" in model.source
+    expected = prior.REAL_SCENES["medians"]["chroma_spread"] / prior.REFERENCE_CG["medians"]["chroma_spread"]
+    assert float(model.chroma_scale) == pytest.approx(min(1.0, expected), rel=1e-6)
+
+
+def test_json_round_trip_and_clear_errors():
+    model = content.content_model(0.4, 1.2, family="chroma_tone", source="test", target={"chroma_spread": 0.2},
+                                  apply_by_default=True)
+    document = json.loads(json.dumps(content.content_to_dict(model)))
+    back = content.content_from_dict(document)
+    assert float(back.chroma_scale) == pytest.approx(0.4) and float(back.tone_power) == pytest.approx(1.2)
+    assert back.family == "chroma_tone" and back.apply_by_default is True and back.source == "test"
+    assert dict(back.target) == {"chroma_spread": pytest.approx(0.2)}
+    for bad, where in (({**document, "family": "x"}, "content.family"),
+                       ({**document, "chroma_scale": "half"}, "content.chroma_scale"),
+                       ({**document, "chroma_scale": 2.0}, "content"),
+                       ({**document, "apply_by_default": "yes"}, "content.apply_by_default"),
+                       ({**document, "extra": 1}, "unknown keys")):
+        with pytest.raises(ValueError, match=where):
+            content.content_from_dict(bad)
+
+
+def test_real_images_round_trip_through_the_camera_matrices():
+    import g2r_jax
+
+    profile = g2r_jax.load_profile("Canon600D")
+    srgb = _colourful(3, seed=8)
+    neutrals = np.array([[0.5, 1.0, 0.7], [0.6, 1.0, 0.5], [0.45, 1.0, 0.8]])
+    to_camera = content.srgb_to_camera_matrices(neutrals, profile.colour)
+    raw = np.einsum("nij,nhwj->nhwi", to_camera, srgb) * neutrals[:, None, None, :]
+    back = content.camera_rgb_to_linear_srgb(raw, neutrals, profile.colour)
+    np.testing.assert_allclose(back, srgb / srgb.reshape(3, -1).max(1)[:, None, None, None], atol=2e-3)
+    with pytest.raises(ValueError, match="neutrals"):
+        content.white_balanced_camera_rgb(raw, -neutrals)
+
+
+@pytest.mark.slow
+def test_prior_numbers_are_those_of_the_data(shared_data):
+    real = prior.measure_real_scenes(shared_data)
+    cg = prior.measure_reference_cg(shared_data)
+    for key in ("chroma_spread", "brightness"):
+        assert prior.REAL_SCENES["medians"][key] == pytest.approx(real[key], rel=1e-3)
+        assert prior.REFERENCE_CG["medians"][key] == pytest.approx(cg[key], rel=1e-3)
