@@ -25,6 +25,7 @@ from g2r_jax.illuminants import distributions as _illuminants
 from g2r_jax import sensor as _sensor
 from g2r_jax.colour.dng_model import DngColourModel
 from g2r_jax.colour.spectral import model as _spectral_model
+from g2r_jax import content as _content
 from g2r_jax.profile import provenance as _provenance
 from g2r_jax.profile.checks import ProfileError, check_document
 from g2r_jax.profile.shipped import (  # re-exported: the shipped profiles' place and names
@@ -66,6 +67,7 @@ class SensorProfile(eqx.Module):
     effects: _sensor.SensorEffects
     info: ProfileInfo = eqx.field(static=True, default=ProfileInfo())
     spectral: Any = None                   # optional g2r_jax.spectral.SpectralModel (sensitivities, lamps)
+    content: Any = None                    # optional g2r_jax.content.ContentModel (the CG scenes' adaptation)
 
     @property
     def cfa_string(self) -> str:
@@ -193,6 +195,7 @@ def profile_to_dict(profile: SensorProfile) -> dict:
         },
         "opcode_lists": {name: data for name, data in info.opcode_lists},
         **({} if profile.spectral is None else {"spectral": _spectral_model.spectral_to_dict(profile.spectral)}),
+        **({} if profile.content is None else {"content": _content.content_to_dict(profile.content)}),
     }
 
 
@@ -333,11 +336,13 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
         opcode_lists=tuple(sorted((str(k), str(v)) for k, v in opcode_lists.items())))
     spectral_doc = r.get(document, "spectral", "spectral", optional=True)
     spectral = None if spectral_doc is None else _spectral_model.spectral_from_dict(spectral_doc, r.fail, dtype)
+    content_doc = r.get(document, "content", "content", optional=True)
+    content = None if content_doc is None else _content.content_from_dict(content_doc, r.fail)
     return SensorProfile(
         cfa_pattern=device_array(cfa, jnp.int32), black_level=as_j(black), white_level=as_j(white),
         baseline_exposure=as_j(float(document.get("baseline_exposure", 0.0))), colour=colour,
         illuminants=illuminant_model, exposure=exposure, noise=noise, effects=effects, info=info,
-        spectral=spectral)
+        spectral=spectral, content=content)
 
 
 def load_profile(name_or_path, dtype=np.float32) -> SensorProfile:
