@@ -16,9 +16,9 @@ from g2r_jax.audit.synthetic_bursts import scene_signal
 from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels
 from g2r_jax.profile.fitting import fit_profile
 from g2r_jax.audit.black_evidence import file_evidence
+from g2r_jax.measure.bursts import is_static_burst
 from g2r_jax.measure.dark_frames import dark_frame_statistics, is_dark_frame
 from g2r_jax.sensor.dark_frames import read_from_dark_frames
-from g2r_jax.sensor.noise import temporal
 from g2r_jax.sensor.noise.quantisation import rounded_gaussian_variance, variance_before_rounding
 
 pytestmark = pytest.mark.skipif(not __import__("dark_frame_sensors").TABLE.exists(),
@@ -120,8 +120,8 @@ def test_rounding_is_undone_exactly(sigma, offset):
 def test_unrelated_files_are_not_a_burst():
     truth = s20fe(800.0)
     scenes = [frames(truth, scene_signal(s, 128, 192), 1, 0, seed=s)[0] for s in range(4)]
-    assert not temporal.is_static_burst(scenes)
-    assert temporal.is_static_burst(frames(truth, scene_signal(1, 128, 192), 4, 0, seed=1))
+    assert not is_static_burst(scenes)
+    assert is_static_burst(frames(truth, scene_signal(1, 128, 192), 4, 0, seed=1))
 
 
 def test_cli_says_it_took_the_read_noise_from_the_dark_frames(tmp_path, capsys):

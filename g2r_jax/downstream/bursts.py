@@ -11,7 +11,7 @@ the mean of the other frames of a static scene is a clean reference for each fra
   not the same static scene as the others); fewer than MIN_FRAMES usable frames is an error.
 - `photon_transfer_noise(burst)`: variance = shot * x + read per CFA position from the frames'
   own per-pixel temporal means and variances (Janesick, *Photon Transfer*, SPIE 2007, ch. 2-5;
-  `g2r_jax.audit.bursts.temporal_nlf`), with the rounding to DN taken out of `read`.
+  `g2r_jax.measure.photon_transfer.regression_shot_read`), with the rounding to DN taken out of `read`.
 - `write_synthetic_burst(folder, profile, ...)`: DNGs of a dead-leaves scene with a known
   heteroscedastic noise (`g2r_jax.audit.synthetic_bursts`), for tests and the benchmark.
 """
@@ -25,11 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from g2r_jax.io.dng_info import DngError
+from g2r_jax.measure.bursts import scene_outliers
+from g2r_jax.measure.photon_transfer import regression_shot_read
 
 MIN_FRAMES = 3
-MAX_RESIDUAL_RATIO = 2.0   # a frame differing from the mean of the others by more than this
-#                            times the median frame's mean squared difference is another scene
-MAX_EXPOSURE_CHANGE = 0.05  # a frame whose gain against the others is off by more than 5 %
 
 
 @dataclasses.dataclass(frozen=True)
@@ -101,35 +100,11 @@ def _key_difference(key, reference) -> str:
     return "differs from the burst"
 
 
-def _scene_outliers(planes: np.ndarray) -> dict[int, str]:
-    """{frame index: reason} for frames that are not the same static scene as the others: their
-    mean level against the others' is off by more than MAX_EXPOSURE_CHANGE, or their mean
-    squared difference from it exceeds MAX_RESIDUAL_RATIO times the median frame's (which is
-    the noise alone: (1 + 1/(n-1)) times its variance)."""
-    n = planes.shape[0]
-    total = planes.sum(0, dtype=np.float64)
-    residual, gains = np.empty(n), np.empty(n)
-    for k in range(n):
-        others = (total - planes[k]) / (n - 1)
-        gains[k] = float(planes[k].sum(dtype=np.float64) / max(float(others.sum()), 1e-30))
-        residual[k] = float(np.mean((planes[k] - others) ** 2))
-    typical = float(np.median(residual))
-    out = {}
-    for k in range(n):
-        if residual[k] > MAX_RESIDUAL_RATIO * typical:
-            out[k] = (f"it differs from the other frames' mean {residual[k] / typical:.1f} times more than the "
-                      f"median frame does: not the same static scene (something moved, or the light changed)")
-        elif abs(gains[k] - 1.0) > MAX_EXPOSURE_CHANGE:
-            out[k] = (f"its mean level differs from the other frames' by {100 * (gains[k] - 1):+.1f} % "
-                      f"(more than {100 * MAX_EXPOSURE_CHANGE:.0f} %): not the same exposure of a static scene")
-    return out
-
-
 def read_burst(source, *, min_frames: int = MIN_FRAMES) -> Burst:
     """A `Burst` from a folder of DNGs or a list of DNG paths (see the module docstring).
 
     Files that cannot be read, that differ from the most common size / CFA / levels / ISO /
-    camera of the others, or whose scene differs from the others' (`_scene_outliers`) are named
+    camera of the others, or whose scene differs from the others' (`g2r_jax.measure.bursts.scene_outliers`) are named
     in `skipped` with the reason. Raises `DngError` naming `source` (and every skipped file)
     when fewer than `min_frames` (at least 3) frames remain.
     """
@@ -162,7 +137,7 @@ def read_burst(source, *, min_frames: int = MIN_FRAMES) -> Burst:
     planes = np.stack([to_normalised_planes(m, info.black_level, info.white_level).astype(np.float32)
                        for _, info, m in frames]) if frames else np.zeros((0, 4, 1, 1), np.float32)
     if len(frames) >= MIN_FRAMES:
-        outliers = _scene_outliers(planes)
+        outliers = scene_outliers(planes)
         skipped += [(frames[k][0].name, reason) for k, reason in sorted(outliers.items())]
         keep = [k for k in range(len(frames)) if k not in outliers]
         frames, planes = [frames[k] for k in keep], planes[keep]
@@ -179,38 +154,17 @@ def read_burst(source, *, min_frames: int = MIN_FRAMES) -> Burst:
 
 
 def photon_transfer_noise(burst: Burst, frames=None) -> tuple[np.ndarray, np.ndarray]:
-    """(shot (4,), read (4,)) of variance = shot * x + read, normalised, from the temporal mean m
-    and variance s^2 (ddof 1) of every pixel over `frames` (indices; default all) of the burst
-    (photon transfer: Janesick, *Photon Transfer*, SPIE 2007, ch. 2-5). Fixed-pattern noise is
-    the same in every frame and drops out.
-
-    Per CFA position, s^2 is regressed on m over the pixels that never clip: for Gaussian noise
-    s^2 and m are independent and E[s^2] = shot * mu + read, but m = mu + e holds the noise e of
-    a mean of n frames, which would flatten an ordinary fit (regression dilution; binning by m
-    instead biases each bin towards the extremes). The slope is therefore corrected by the
-    known variance of e, mean(s^2) / n: shot = cov(m, s^2) / (var(m) - mean(s^2) / n), read =
-    mean(s^2) - shot * mean(m) (Fuller, *Measurement Error Models*, Wiley 1987, sec. 1.1). The
-    measured variance holds the rounding to integer DN once (1/12 DN^2); it is taken out of
-    `read`, since a simulation rounds its own output. NaN where the pixels do not span a range
-    of signals."""
+    """(shot (4,), read (4,)) of variance = shot * x + read, normalised, from the temporal mean
+    and variance of every pixel over `frames` (indices; default all) of the burst, by the
+    toolkit's regression corrected for the noise in the mean
+    (`g2r_jax.measure.photon_transfer.regression_shot_read`: Janesick 2007, Fuller 1987) over the
+    pixels above the DN floor that never clip. The measured variance holds the rounding to
+    integer DN once (1/12 DN^2); it is taken out of `read`, since a simulation rounds its own
+    output. NaN where the pixels do not span a range of signals."""
     from g2r_jax.sensor.noise.quantisation import rounding_variance
 
     planes = burst.planes if frames is None else burst.planes[list(frames)]
-    n = planes.shape[0]
-    floor = -burst.black / burst.span + 0.5 / burst.span
-    shot, read = np.full(4, np.nan), np.full(4, np.nan)
-    for p in range(4):   # one CFA plane at a time: a 12-MP burst's float64 copies stay small
-        plane = planes[:, p]
-        usable = (plane.max(0) < 0.98) & (plane.min(0) > floor[p])
-        m = plane.mean(0, dtype=np.float64)[usable]
-        s2 = plane.var(0, ddof=1, dtype=np.float64)[usable]
-        if m.size < 100:
-            continue
-        spread = m.var() - s2.mean() / n
-        if spread <= 0:
-            continue
-        shot[p] = np.mean((m - m.mean()) * (s2 - s2.mean())) / spread
-        read[p] = s2.mean() - shot[p] * m.mean()
+    shot, read = regression_shot_read(planes, -burst.black / burst.span + 0.5 / burst.span)
     return shot, read - rounding_variance(burst.black, burst.white)
 
 

@@ -77,11 +77,13 @@ def measure_pooled(infos, *, n_bootstrap: int = 50, fixed_read=None, methods: li
     `fixed_read` (4,), normalised with the rounding in it (e.g. from dark frames): the read term,
     only the shot term is fitted (`shot_with_read_held`).
 
-    Files that form a static burst (`temporal.is_static_burst`: the same scene in every frame)
-    are measured over time instead (`temporal.fit_temporal_shot_read`): no scene texture, and a
+    Files that form a static burst (`measure.bursts.is_static_burst`: the same scene in every
+    frame) are measured over time instead (`measure.photon_transfer.temporal_bins` and
+    `fit_shot_read`): no scene texture, and a
     read term unbiased at the low end; `methods` (a list) gets "temporal" or "flat blocks"."""
     from g2r_jax.io.dng_read import read_dng_pixels
-    from g2r_jax.sensor.noise import temporal as _temporal
+    from g2r_jax.measure import photon_transfer as _photon_transfer
+    from g2r_jax.measure.bursts import is_static_burst
     from g2r_jax.sensor.noise.estimation import to_normalised_planes
 
     blocks, problems, levels, mosaics, held = [], [], None, [], 0
@@ -98,8 +100,8 @@ def measure_pooled(infos, *, n_bootstrap: int = 50, fixed_read=None, methods: li
     if not blocks:
         return None, problems
     black, white = levels
-    if mosaics and _temporal.is_static_burst(mosaics):
-        shot, read = _temporal.fit_temporal_shot_read(mosaics, black, white)
+    if mosaics and is_static_burst(mosaics):
+        shot, read = _photon_transfer.fit_shot_read(*_photon_transfer.temporal_bins(mosaics, black, white))
         if fixed_read is not None:
             read = np.asarray(fixed_read, np.float64)
         if np.all(np.isfinite(shot)) and np.all(np.isfinite(read)):
