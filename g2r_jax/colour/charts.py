@@ -187,10 +187,13 @@ def write_charts(path, charts: ChartSet) -> None:
 
 
 def assign_folds(n: int, folds: int = 3, seed: int = 0) -> np.ndarray:
-    """Fold of each of n images: a seeded permutation dealt round-robin (sizes differ by <= 1)."""
-    order = np.random.default_rng(seed).permutation(n)
+    """Fold of each of n images: a seeded permutation dealt round-robin (sizes differ by <= 1),
+    the folds of `g2r_jax.measure.folds_of` as one label per image."""
+    from g2r_jax.measure import folds_of
+
     out = np.empty(n, int)
-    out[order] = np.arange(n) % folds
+    for fold, held in enumerate(folds_of(n, folds, seed)):
+        out[held] = fold
     return out
 
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from g2r_jax.measure import robust_sd
+from g2r_jax.measure import angular_error_degrees, robust_sd
 
 STATISTICS = {
     "brightness": "mean brightness (relative to the brightest pixel)",
@@ -67,9 +67,7 @@ def image_statistics(images: np.ndarray, illuminants: np.ndarray) -> dict:
         balanced = np.maximum((bright if len(bright) >= 8 else values) / lights[i], _EPS)
         chroma = np.log(balanced[:, [0, 2]] / balanced[:, 1:2])
         spread[i] = float(np.sqrt(np.mean(np.var(chroma, axis=0))))
-        mean = values.mean(0)
-        cosine = mean @ lights[i] / (np.linalg.norm(mean) * np.linalg.norm(lights[i]))
-        bias[i] = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+        bias[i] = angular_error_degrees(values.mean(0), lights[i], invalid="nan")[0]
     out.update(contrast=contrast, chroma_spread=spread, grey_world_bias=bias)
     return out
 
