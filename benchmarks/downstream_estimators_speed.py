@@ -4,7 +4,7 @@ The NUS benchmark trains each estimator about 800 times within 40 minutes on two
 training must cost about a second of CPU. This measures, on `--n` thumbnails (the NUS Canon600D
 set resampled with replacement when ../shared/data is there, synthetic scenes otherwise):
 - the CNN's compile (once per set capacity, a power of two) and one training after it;
-- the same training with lax.conv in place of the shifted-copies matrix product (`_conv`);
+- the same training with lax.conv in place of the shifted-copies matrix product (`SameConv`);
 - `train_many` of `--many` sets in one vmapped program against as many separate trainings;
 - moments and histogram trainings.
 Times are process CPU seconds (both cores count), medians of `--repeats`.
@@ -69,20 +69,22 @@ def main() -> int:
     print(f"cnn: train_many of {args.many} sets {many:.2f} s CPU ({many / args.many:.2f} per model) "
           f"against {one * args.many:.2f} s for {args.many} separate trainings")
 
-    matrix_product = est._conv
+    from g2r_jax.downstream import training
 
-    def lax_conv(x, layer):
-        return jax.lax.conv_general_dilated(x, layer["w"], (1, 1), "SAME",
-                                            dimension_numbers=("NHWC", "HWIO", "NHWC")) + layer["b"]
+    matrix_product = est.SameConv.__call__
 
-    est._conv = lax_conv
-    est._compiled_train.cache_clear()
+    def lax_conv(layer, x):
+        return jax.lax.conv_general_dilated(x, layer.weight, (1, 1), "SAME",
+                                            dimension_numbers=("NHWC", "HWIO", "NHWC")) + layer.bias
+
+    est.SameConv.__call__ = lax_conv
+    training._compiled.cache_clear()
     try:
         est.train_cnn(images, lights, seed=0)
         with_lax = cpu(lambda: est.train_cnn(images, lights, seed=1), args.repeats)
     finally:
-        est._conv = matrix_product
-        est._compiled_train.cache_clear()
+        est.SameConv.__call__ = matrix_product
+        training._compiled.cache_clear()
     print(f"cnn: one training with lax.conv {with_lax:.2f} s CPU, with the shifted-copies product {one:.2f} s")
 
     for kind in ("moments", "histogram"):

@@ -174,11 +174,16 @@ def test_unknown_estimator_and_too_few_distinct_images_are_refused():
 @pytest.mark.slow
 def test_train_many_matches_separate_trainings(scenes):
     (train_x, train_y), (test_x, _), _ = scenes
+    # Short runs: Adam at 1e-2 on the angular loss amplifies float reassociation (vmapped against
+    # separate programs) to ~1e-3 in the estimates after 160 steps, at HEAD before the training
+    # base as after it; 2 x 10 steps keep the comparison exact to 1e-4.
+    short = dataclasses.replace(SMALL_CNN, checkpoints=2, steps_per_checkpoint=10)
     sets = [(train_x[:120], train_y[:120]), (train_x[120:], train_y[120:])]
-    together = est.train_many_cnn(sets, [3, 4], config=SMALL_CNN)
+    together = est.train_many_cnn(sets, [3, 4], config=short)
     for (images, lights), seed, model in zip(sets, [3, 4], together):
-        alone = est.train_cnn(images, lights, seed=seed, config=SMALL_CNN)
+        alone = est.train_cnn(images, lights, seed=seed, config=short)
         np.testing.assert_allclose(model(test_x[:10]), alone(test_x[:10]), atol=1e-4)
+        np.testing.assert_allclose(model.curve[0], alone.curve[0], rtol=1e-4)
 
 
 # ---------------------------------------------------------------- real images (NUS, measured lights)

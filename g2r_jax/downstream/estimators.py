@@ -12,7 +12,8 @@ camera-RGB estimates.
   ReLU, conv 1x1 (14 -> 3) + ReLU, global mean over locations: 1,137 parameters. The architecture
   is theirs, written here in JAX; the training is scaled to our budget (see `cnn_config`): the
   thumbnails 2x2-binned to 32 x 32, random 16 x 16 patches with flips (the paper: 64 x 64
-  patches of images downsampled 4x, about a twentieth of the frame, like ours), Adam (optax),
+  patches of images downsampled 4x, about a twentieth of the frame, like ours), Adam (optax, through
+  the one training base `g2r_jax.downstream.training.fit`),
   angular loss (the release trains on the L1 distance to the green-normalised light), the best of
   several checkpoints by mean angular error on a validation split held out of the training set
   (the release: 2000 epochs, best validation L1 loss). Ours deviates in one more place: the last
@@ -29,13 +30,15 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import hashlib
 from typing import Callable, Sequence
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optax
+
+from g2r_jax.downstream.training import FitResult, LoopConfig, fit
+from g2r_jax.measure import duplicate_groups
 
 ESTIMATORS = ("cnn", "moments", "histogram")
 
@@ -208,39 +211,23 @@ class CnnConfig:
     filters: int = 7            # Gong's width: 7 then 14 channels
 
 
-def cnn_init(seed: int, filters: int = 7) -> dict:
-    """Parameters of Gong's network, initialised as PyTorch's default (uniform +- 1/sqrt(fan_in),
-    numpy's generator for `seed`), except the last layer's biases, set to 1 so that no output
-    channel starts dead behind its ReLU (a channel negative at every location never receives a
-    gradient again; with the default biases that happened on real data)."""
-    rng = np.random.default_rng([seed, 1137])
-    shapes = {"conv1": (3, 3, 3, filters), "conv2": (3, 3, filters, 2 * filters), "conv3": (1, 1, 2 * filters, 3)}
-    params = {}
-    for name, shape in shapes.items():
-        bound = 1.0 / np.sqrt(np.prod(shape[:3]))
-        params[name] = {"w": rng.uniform(-bound, bound, shape).astype(np.float32),
-                        "b": rng.uniform(-bound, bound, shape[3]).astype(np.float32)}
-    params["conv3"]["b"] = np.ones(3, np.float32)
-    return params
+class SameConv(eqx.Module):
+    """A 'same' convolution (HWIO kernel of odd size, NHWC input) computed as one matrix product
+    over shifted copies: on CPU, inside the training loop, about 3x faster than lax.conv for
+    these few channels (benchmarks/downstream_estimators_speed.py)."""
 
+    weight: jax.Array
+    bias: jax.Array
 
-def count_parameters(params) -> int:
-    return int(sum(np.size(leaf) for leaf in jax.tree_util.tree_leaves(params)))
-
-
-def _conv(x, layer):
-    """'Same' convolution (HWIO kernel, odd size) as one matrix product over shifted copies: on
-    CPU, inside the training loop, about 3x faster than lax.conv for these few channels
-    (benchmarks/downstream_estimators_speed.py)."""
-    kernel = layer["w"]
-    size, inputs, outputs = kernel.shape[0], kernel.shape[2], kernel.shape[3]
-    if size == 1:
-        return x @ kernel[0, 0] + layer["b"]
-    _, h, w, _ = x.shape
-    r = size // 2
-    padded = jnp.pad(x, ((0, 0), (r, r), (r, r), (0, 0)))
-    columns = jnp.concatenate([padded[:, i:i + h, j:j + w] for i in range(size) for j in range(size)], -1)
-    return columns @ kernel.reshape(size * size * inputs, outputs) + layer["b"]
+    def __call__(self, x):
+        size, inputs, outputs = self.weight.shape[0], self.weight.shape[2], self.weight.shape[3]
+        if size == 1:
+            return x @ self.weight[0, 0] + self.bias
+        _, h, w, _ = x.shape
+        r = size // 2
+        padded = jnp.pad(x, ((0, 0), (r, r), (r, r), (0, 0)))
+        columns = jnp.concatenate([padded[:, i:i + h, j:j + w] for i in range(size) for j in range(size)], -1)
+        return columns @ self.weight.reshape(size * size * inputs, outputs) + self.bias
 
 
 def _max_pool2(x):
@@ -248,16 +235,46 @@ def _max_pool2(x):
     return x[:, : h // 2 * 2, : w // 2 * 2].reshape(b, h // 2, 2, w // 2, 2, c).max((2, 4))
 
 
-def cnn_local_estimates(params, x):
-    """(B, H, W, 3) -> (B, H/4, W/4, 3): the network's per-location estimates before the mean."""
-    y = jax.nn.relu(_max_pool2(_conv(x, params["conv1"])))
-    y = jax.nn.relu(_max_pool2(_conv(y, params["conv2"])))
-    return jax.nn.relu(_conv(y, params["conv3"]))
+class ConvolutionalMean(eqx.Module):
+    """Gong's network (BMVC 2019, as in Graphics2RAW's model_archs/cnn.py): conv 3x3 + 2x2
+    max-pool + ReLU twice, conv 1x1 + ReLU, mean over locations. (B, H, W, 3) -> (B, 3)."""
+
+    conv1: SameConv
+    conv2: SameConv
+    conv3: SameConv
+
+    def local_estimates(self, x):
+        """(B, H, W, 3) -> (B, H/4, W/4, 3): the per-location estimates before the mean."""
+        y = jax.nn.relu(_max_pool2(self.conv1(x)))
+        y = jax.nn.relu(_max_pool2(self.conv2(y)))
+        return jax.nn.relu(self.conv3(y))
+
+    def __call__(self, x):
+        return self.local_estimates(x).mean((1, 2))
 
 
-def cnn_apply(params, x):
+def cnn_init(seed: int, filters: int = 7) -> ConvolutionalMean:
+    """Gong's network initialised as PyTorch's default (uniform +- 1/sqrt(fan_in), numpy's
+    generator for `seed`), except the last layer's biases, set to 1 so that no output channel
+    starts dead behind its ReLU (a channel negative at every location never receives a gradient
+    again; with the default biases that happened on real data)."""
+    rng = np.random.default_rng([seed, 1137])
+    layers = []
+    for shape in ((3, 3, 3, filters), (3, 3, filters, 2 * filters), (1, 1, 2 * filters, 3)):
+        bound = 1.0 / np.sqrt(np.prod(shape[:3]))
+        layers.append(SameConv(jnp.asarray(rng.uniform(-bound, bound, shape).astype(np.float32)),
+                               jnp.asarray(rng.uniform(-bound, bound, shape[3]).astype(np.float32))))
+    layers[2] = SameConv(layers[2].weight, jnp.ones(3, jnp.float32))
+    return ConvolutionalMean(*layers)
+
+
+def count_parameters(model) -> int:
+    return int(sum(np.size(leaf) for leaf in jax.tree_util.tree_leaves(eqx.filter(model, eqx.is_array))))
+
+
+def cnn_apply(model, x):
     """(B, H, W, 3) -> (B, 3): Gong's convolutional mean, the average of the local estimates."""
-    return cnn_local_estimates(params, x).mean((1, 2))
+    return model(x)
 
 
 def _angular_loss_degrees(estimate, truth):
@@ -290,18 +307,11 @@ def _pad(array: np.ndarray, rows: int) -> np.ndarray:
     return np.concatenate([array, np.zeros((rows - len(array),) + array.shape[1:], array.dtype)])
 
 
-def _content_groups(images: np.ndarray) -> np.ndarray:
-    """Group id per image; identical images (a set repeated to size) share one, so that a
-    validation split never holds copies of training images."""
-    digests = [hashlib.blake2b(image.tobytes(), digest_size=16).digest() for image in images]
-    _, groups = np.unique(np.array(digests, dtype=object).astype(bytes), return_inverse=True)
-    return groups.reshape(-1)
-
-
 def _split(images: np.ndarray, fraction: float, limit: int, rng: np.random.Generator):
     """Training / validation indices: a random `fraction` of the distinct images (at most `limit`
-    of them, at least one) held out, copies kept together."""
-    groups = _content_groups(images)
+    of them, at least one) held out; identical images (a set repeated to size; found by
+    `measure.duplicate_groups`) stay on one side."""
+    groups = duplicate_groups(images)
     distinct = np.unique(groups)
     if len(distinct) < 2:
         raise ValueError("cnn: the training set needs at least two distinct images (one is held out "
@@ -314,73 +324,58 @@ def _split(images: np.ndarray, fraction: float, limit: int, rng: np.random.Gener
     return np.flatnonzero(~is_val), val
 
 
-def _train_program(config: CnnConfig):
-    """The whole training as one function of arrays (jit once per set capacity and config)."""
-    optimiser = optax.adam(config.learning_rate)
-    patch = config.patch
-
-    def loss_fn(params, crops, lights):
-        return _angular_loss_degrees(cnn_apply(params, crops), lights).mean()
-
-    def val_error(params, val_x, val_y, val_w):
-        errors = _angular_loss_degrees(cnn_apply(params, val_x), val_y)
-        return jnp.sum(jnp.where(val_w > 0, errors, 0.0)) / jnp.sum(val_w)
-
-    def train(params, data_key, train_x, train_y, n_train, val_x, val_y, val_w):
-        height, width = train_x.shape[1:3]
-
-        def step(carry, key):
-            params, state = carry
-            k_index, k_y, k_x, k_flip = jax.random.split(key, 4)
-            index = jax.random.randint(k_index, (config.batch,), 0, n_train)
-            top = jax.random.randint(k_y, (config.batch,), 0, height - patch + 1)
-            left = jax.random.randint(k_x, (config.batch,), 0, width - patch + 1)
-            crops = jax.vmap(lambda i, t, l: jax.lax.dynamic_slice(train_x[i], (t, l, 0), (patch, patch, 3)))(
-                index, top, left)
-            flips = jax.random.bernoulli(k_flip, 0.5, (2, config.batch))[..., None, None, None]
-            crops = jnp.where(flips[0], crops[:, :, ::-1], crops)
-            crops = jnp.where(flips[1], crops[:, ::-1], crops)
-            loss, grads = jax.value_and_grad(loss_fn)(params, crops, train_y[index])
-            updates, state = optimiser.update(grads, state, params)
-            return (optax.apply_updates(params, updates), state), loss
-
-        def checkpoint(carry, key):
-            params, state, best, best_error = carry
-            (params, state), losses = jax.lax.scan(step, (params, state),
-                                                   jax.random.split(key, config.steps_per_checkpoint))
-            error = val_error(params, val_x, val_y, val_w)
-            better = error < best_error
-            best = jax.tree_util.tree_map(lambda new, old: jnp.where(better, new, old), params, best)
-            return (params, state, best, jnp.minimum(error, best_error)), (error, losses.mean())
-
-        carry = (params, optimiser.init(params), params, jnp.float32(jnp.inf))
-        (_, _, best, best_error), curve = jax.lax.scan(checkpoint, carry,
-                                                       jax.random.split(data_key, config.checkpoints))
-        return best, best_error, curve
-
-    return train
+def _random_crops(key, patch: int, batch: int, train_x, train_y, n_train):
+    """`batch` random patch x patch crops of the first `n_train` images, each flipped at random
+    left-right and up-down, with their lights."""
+    height, width = train_x.shape[1:3]
+    k_index, k_y, k_x, k_flip = jax.random.split(key, 4)
+    index = jax.random.randint(k_index, (batch,), 0, n_train)
+    top = jax.random.randint(k_y, (batch,), 0, height - patch + 1)
+    left = jax.random.randint(k_x, (batch,), 0, width - patch + 1)
+    crops = jax.vmap(lambda i, t, l: jax.lax.dynamic_slice(train_x[i], (t, l, 0), (patch, patch, 3)))(index, top, left)
+    flips = jax.random.bernoulli(k_flip, 0.5, (2, batch))[..., None, None, None]
+    crops = jnp.where(flips[0], crops[:, :, ::-1], crops)
+    crops = jnp.where(flips[1], crops[:, ::-1], crops)
+    return crops, train_y[index]
 
 
 @functools.lru_cache(maxsize=None)
-def _compiled_train(config: CnnConfig, many: bool):
-    program = _train_program(config)
-    if many:
-        program = jax.vmap(program)
-    return jax.jit(program)
+def _cnn_step_loss(patch: int, batch: int):
+    """The training loss of one step for `fit`: the mean angular error on `batch` random crops of
+    patch x patch (`data`: the padded training images, lights and their count). One function per
+    (patch, batch), so that compiled programs are reused."""
+
+    def step_loss(model, key, data):
+        train_x, train_y, n_train = data
+        crops, lights = _random_crops(key, patch, batch, train_x, train_y, n_train)
+        return _angular_loss_degrees(model(crops), lights).mean()
+
+    return step_loss
 
 
-@jax.jit
-def _apply_jit(params, x):
-    return cnn_apply(params, x)
+def _cnn_validation_error(model, validation):
+    val_x, val_y, val_w = validation
+    errors = _angular_loss_degrees(model(val_x), val_y)
+    return jnp.sum(jnp.where(val_w > 0, errors, 0.0)) / jnp.sum(val_w)
+
+
+def _loop_config(config: "CnnConfig") -> LoopConfig:
+    return LoopConfig(rounds=config.checkpoints, steps_per_round=config.steps_per_checkpoint,
+                      learning_rate=config.learning_rate)
+
+
+@eqx.filter_jit
+def _apply_jit(model, x):
+    return model(x)
 
 
 @dataclasses.dataclass
 class CnnPredictor:
-    """A trained CNN: `predict(images)` (also callable) gives unit-norm estimates; `params`, the
-    validation error of the kept checkpoint and the curve (validation error, mean training loss
-    per checkpoint) are kept for reports."""
-    params: dict
-    config: CnnConfig
+    """A trained CNN: `predict(images)` (also callable) gives unit-norm estimates; `params` (the
+    equinox module), the validation error of the kept checkpoint and the curve (validation error,
+    mean training loss per checkpoint) are kept for reports."""
+    params: ConvolutionalMean
+    config: "CnnConfig"
     validation_error: float
     curve: tuple
 
@@ -392,7 +387,8 @@ class CnnPredictor:
     predict = __call__
 
 
-def _prepare(images, illuminants, seed: int, config: CnnConfig):
+def _prepare(images, illuminants, seed: int, config: "CnnConfig"):
+    """(model, round keys (checkpoints, steps, 2), data, validation) of one training."""
     x = _check_images(images, "cnn")
     lights = _check_lights(illuminants, len(x), "cnn").astype(np.float32)
     binned = _bin(x, config.binning)
@@ -404,16 +400,28 @@ def _prepare(images, illuminants, seed: int, config: CnnConfig):
     capacity = _bucket(len(train), 256)
     val_w = np.zeros(config.max_validation, np.float32)
     val_w[: len(val)] = 1.0
-    arrays = (_pad(binned[train], capacity), _pad(lights[train], capacity), np.int32(len(train)),
-              _pad(binned[val], config.max_validation), _pad(lights[val], config.max_validation), val_w)
-    return (cnn_init(seed, config.filters), np.asarray(jax.random.PRNGKey(seed))) + arrays
+    data = (_pad(binned[train], capacity), _pad(lights[train], capacity), np.int32(len(train)))
+    validation = (_pad(binned[val], config.max_validation), _pad(lights[val], config.max_validation), val_w)
+    keys = jax.vmap(lambda k: jax.random.split(k, config.steps_per_checkpoint))(
+        jax.random.split(jax.random.PRNGKey(seed), config.checkpoints))
+    return cnn_init(seed, config.filters), np.asarray(keys), data, validation
+
+
+def _predictor(fitted: FitResult, config, member=None) -> CnnPredictor:
+    take = (lambda a: np.asarray(a)) if member is None else (lambda a: np.asarray(a[member]))
+    pick = (lambda a: a) if member is None else (lambda a: a[:, member])
+    curve, losses = pick(fitted.curve), pick(fitted.losses)
+    return CnnPredictor(params=jax.tree_util.tree_map(take, fitted.model), config=config,
+                        validation_error=float(np.min(curve)), curve=(curve, losses))
 
 
 def train_cnn(images, illuminants, *, seed: int = 0, config: CnnConfig = CnnConfig()) -> CnnPredictor:
-    """Train Gong's convolutional-mean CNN (see the module docstring); deterministic for a seed."""
-    best, error, curve = _compiled_train(config, False)(*_prepare(images, illuminants, seed, config))
-    return CnnPredictor(params=jax.tree_util.tree_map(np.asarray, best), config=config,
-                        validation_error=float(error), curve=tuple(np.asarray(c) for c in curve))
+    """Train Gong's convolutional-mean CNN (see the module docstring) with `training.fit`: Adam at
+    a constant rate, the best of `checkpoints` rounds by validation error; deterministic for a seed."""
+    model, keys, data, validation = _prepare(images, illuminants, seed, config)
+    fitted = fit(model, _cnn_step_loss(config.patch, config.batch), lambda r: keys[r], data, _loop_config(config),
+                 validate=_cnn_validation_error, validation_data=validation)
+    return _predictor(fitted, config)
 
 
 def train_many_cnn(sets: Sequence[tuple], seeds: Sequence[int], *,
@@ -428,14 +436,14 @@ def train_many_cnn(sets: Sequence[tuple], seeds: Sequence[int], *,
         raise ValueError(f"{len(sets)} training sets but {len(seeds)} seeds")
     prepared = [_prepare(images, lights, seed, config) for (images, lights), seed in zip(sets, seeds)]
     out = [None] * len(sets)
-    for capacity in sorted({p[2].shape[0] for p in prepared}):
-        members = [i for i, p in enumerate(prepared) if p[2].shape[0] == capacity]
-        stacked = jax.tree_util.tree_map(lambda *leaves: np.stack(leaves), *[prepared[i] for i in members])
-        best, error, curve = _compiled_train(config, True)(*stacked)
+    for capacity in sorted({p[2][0].shape[0] for p in prepared}):
+        members = [i for i, p in enumerate(prepared) if p[2][0].shape[0] == capacity]
+        model, keys, data, validation = jax.tree_util.tree_map(lambda *leaves: np.stack(leaves),
+                                                               *[prepared[i] for i in members])
+        fitted = fit(jax.tree_util.tree_map(jnp.asarray, model), _cnn_step_loss(config.patch, config.batch), lambda r: keys[:, r], data,
+                     _loop_config(config), validate=_cnn_validation_error, validation_data=validation, members=True)
         for j, i in enumerate(members):
-            out[i] = CnnPredictor(params=jax.tree_util.tree_map(lambda a: np.asarray(a[j]), best), config=config,
-                                  validation_error=float(error[j]),
-                                  curve=tuple(np.asarray(c[j]) for c in curve))
+            out[i] = _predictor(fitted, config, j)
     return out
 
 
