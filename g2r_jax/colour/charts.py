@@ -26,7 +26,9 @@ The chart's colours: the 24 spectral reflectances of colour-science's "ColorChec
 (Ohta's measurements as distributed with colour-science) integrated under CIE D65 with the CIE
 1931 2-degree observer (`colour.sd_to_XYZ`, ASTM E308 integration) and converted to linear sRGB
 (IEC 61966-2-1 primaries, D65 white; no adaptation is needed). The cyan patch (18) lies slightly
-outside the sRGB gamut; its linear value is kept unclipped.
+outside the sRGB gamut; its linear value is kept unclipped. The built-in example scene's
+patches (`colour_checker_2014_srgb`) are another data set: colour-science's "ColorChecker24 -
+After November 2014" CIE xyY (D50), Bradford-adapted to sRGB's D65.
 """
 
 from __future__ import annotations
@@ -219,6 +221,18 @@ def chart_linear_srgb() -> np.ndarray:
     """(24, 3) linear sRGB of the ColorChecker N Ohta reflectances under CIE D65 (white of a
     perfect diffuser = Y 1), unclipped; see the module docstring for the source."""
     return _chart_linear_srgb().copy()
+
+
+def colour_checker_2014_srgb() -> np.ndarray:
+    """(24, 3) sRGB-encoded values in [0, 1] of the "ColorChecker24 - After November 2014" patches
+    (colour-science's xyY under D50, Bradford chromatic adaptation to sRGB; clipped): the
+    patches of the built-in example scene (`g2r_jax.examples`)."""
+    import colour
+
+    checker = colour.CCS_COLOURCHECKERS["ColorChecker24 - After November 2014"]
+    XYZ = colour.xyY_to_XYZ(np.array(list(checker.data.values())))
+    rgb = colour.XYZ_to_sRGB(XYZ, illuminant=checker.illuminant, chromatic_adaptation_transform="Bradford")
+    return np.clip(rgb, 0, 1)
 
 
 def chart_srgb() -> np.ndarray:

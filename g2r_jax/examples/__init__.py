@@ -16,14 +16,11 @@ EXAMPLE_SCENE = EXAMPLES_DIR / "colour_checker_scene.png"
 
 
 def colour_checker_srgb() -> np.ndarray:
-    """(24, 3) sRGB-encoded values in [0, 1] of the ColorChecker patches (from colour-science)."""
-    import colour
+    """(24, 3) sRGB-encoded values in [0, 1] of the example's ColorChecker patches
+    (`g2r_jax.colour.charts.colour_checker_2014_srgb`)."""
+    from g2r_jax.colour.charts import colour_checker_2014_srgb
 
-    checker = colour.CCS_COLOURCHECKERS["ColorChecker24 - After November 2014"]
-    xyY = np.array(list(checker.data.values()))
-    XYZ = colour.xyY_to_XYZ(xyY)
-    rgb = colour.XYZ_to_sRGB(XYZ, illuminant=checker.illuminant, chromatic_adaptation_transform="Bradford")
-    return np.clip(rgb, 0, 1)
+    return colour_checker_2014_srgb()
 
 
 def make_colour_checker_scene(height: int = 480, width: int = 640) -> np.ndarray:
