@@ -6,7 +6,9 @@ folds by `measure.folds_of`, training lights from the training folds only, teste
 Rows: `shipped` (the profile as given, lights 0), and each model of `--models` at each count of
 `--lights`: `prior` and `locus` use no light (lights 0 only); `kernel` needs one; `auto` is what
 g2r-fit-profile fits; `pooled` is `illuminants.pooled` with the camera under test left out of the
-pool (leave-one-camera-out: none of its lights informs its own prior). Each count below all is
+pool (leave-one-camera-out: none of its lights informs its own prior); `pooled-gs` leaves all nine
+NUS cameras out (only the Gehler-Shi lights: other scenes, since the NUS cameras shot many of the
+same scenes, so `pooled` may know the test camera's scenes' lights from its siblings). Each count below all is
 drawn `--draws` times per fold (a different random subset of the fold's training lights each).
 Content: `cg` (the CARLA frames, the paper's setting) or `real` (the training folds' real images
 relit to the model's lights, `experiment`'s real_profile_light: the lights' own cost).
@@ -36,7 +38,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from downstream_nus import CAMERAS, CARLA, NUS, camera_profile  # noqa: E402
 
-MODELS = ("prior", "locus", "kernel", "auto", "pooled")
+MODELS = ("prior", "locus", "kernel", "auto", "pooled", "pooled-gs")
 NO_LIGHT_MODELS = ("prior", "locus")
 
 
@@ -55,13 +57,15 @@ def model_for(name, camera, profile, lights):
         return profile if len(points) == 0 else None
     if (name in NO_LIGHT_MODELS and len(points)) or (name == "kernel" and not len(points)):
         return None
-    if name == "pooled":
+    if name.startswith("pooled"):
         from g2r_jax.illuminants.pooled import pooled_base
 
-        if camera not in _POOLED_BASES:
-            _POOLED_BASES[camera] = pooled_base(profile.colour, lambda p: choice.camera_locus_tangents(p, profile.colour),
-                                                exclude=(camera,))
-        model, _ = choice.fit_pooled_for_camera(points, profile.colour, exclude=(camera,), base=_POOLED_BASES[camera])
+        exclude = (camera,) if name == "pooled" else CAMERAS
+        if (camera, name) not in _POOLED_BASES:
+            _POOLED_BASES[(camera, name)] = pooled_base(
+                profile.colour, lambda p: choice.camera_locus_tangents(p, profile.colour), exclude=exclude)
+        model, _ = choice.fit_pooled_for_camera(points, profile.colour, exclude=exclude,
+                                                base=_POOLED_BASES[(camera, name)])
     else:
         model = choice.choose_illuminant_model(points, profile.colour, name).model
     return replace(profile, illuminants=model)

@@ -43,7 +43,7 @@ def test_a_camera_s_own_lights_come_back_through_its_own_matrices(shared_data):
 def test_pooled_model_blends_the_camera_s_lights_with_the_pool():
     colour = load_profile("Canon600D").colour
     none, words = ch.fit_pooled_for_camera(np.zeros((0, 2)), colour, exclude=("Canon600D",))
-    assert none.kind == "kernel" and "other cameras" in words
+    assert none.kind == "kernel" and "measured cameras" in words
     samples = il.neutral_to_chromaticity(np.asarray(il.sample_neutrals(jax.random.PRNGKey(0), none, 2000), np.float64))
     assert np.all(samples > 0) and np.all(np.isfinite(samples))
     lights = np.array([[0.5, 0.6], [0.52, 0.58], [0.8, 0.35]])
@@ -52,7 +52,7 @@ def test_pooled_model_blends_the_camera_s_lights_with_the_pool():
     np.testing.assert_allclose(own.sum(), 3 / (3 + 5), rtol=1e-5)   # n / (n + n0), n0 = PRIOR_PSEUDO_LIGHTS
     np.testing.assert_allclose(np.asarray(blended.means)[:3], lights, rtol=1e-6)
     choice = ch.choose_illuminant_model(lights, colour, "pooled")
-    assert choice.lights == 3 and "other cameras" in choice.reason
+    assert choice.lights == 3 and "measured cameras" in choice.reason
 
 
 def test_a_malformed_pool_names_its_file(tmp_path):

@@ -102,7 +102,7 @@ def pooled_base(colour_model, tangents_of, exclude=(), pool=None):
                               bandwidths=_kernel.DEFAULT_BANDWIDTHS, weights=carried.weights, dtype=np.float64)
     left = (f"; {carried.left_out:.1%} of them left out: this camera's colour matrices give them a non-positive "
             "or non-finite neutral" if carried.left_out > 0 else "")
-    return base, (f"{len(carried.chromaticities)} lights of {len(carried.sources)} other cameras carried "
+    return base, (f"{len(carried.chromaticities)} lights of {len(carried.sources)} measured cameras carried "
                   f"through this camera's colour matrices{left}")
 
 
