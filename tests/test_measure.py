@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from g2r_jax import measure
+from g2r_jax.measure import bursts, photon_transfer
 
 
 # ---------------------------------------------------------------- robust spreads
@@ -93,3 +94,63 @@ def test_angular_error_of_chart_patches_keeps_their_shape_and_nan_marks_missing_
 def test_error_summary_best_and_worst_quarters():
     summary = measure.error_summary(np.arange(1.0, 9.0))
     assert summary == {"mean": 4.5, "median": 4.5, "best25": 1.5, "worst25": 7.5}
+
+
+# ---------------------------------------------------------------- bursts and photon transfer
+
+
+def _gaussian_burst(shot, read, n=8, seed=0, shape=(4, 96, 128)):
+    """(n, 4, h, w) normalised frames of a static ramp with variance shot x + read (no rounding)."""
+    rng = np.random.default_rng(seed)
+    scene = np.broadcast_to(np.linspace(0.0, 0.6, shape[-1]), shape)
+    return (scene + np.sqrt(shot * scene + read) * rng.standard_normal((n,) + shape)).astype(np.float32)
+
+
+def test_bin_moments_are_each_bins_mean_and_standard_error():
+    rng = np.random.default_rng(2)
+    level, variance = rng.uniform(0, 1, 5000), rng.gamma(3.0, 1.0, 5000)
+    edges = np.array([0.0, 0.25, 0.5, 1.0])
+    signal, mean, se = photon_transfer.bin_moments(photon_transfer.bin_sums(level, level, variance, edges),
+                                                   min_pixels=10, ddof=1)
+    for b in range(3):
+        chosen = (level >= edges[b]) & (level < edges[b + 1])
+        assert signal[b] == pytest.approx(level[chosen].mean())
+        assert mean[b] == pytest.approx(variance[chosen].mean())
+        assert se[b] == pytest.approx(variance[chosen].std(ddof=1) / np.sqrt(chosen.sum()))
+    assert np.isnan(photon_transfer.bin_moments(photon_transfer.bin_sums(level, level, variance, edges),
+                                                min_pixels=10_000)[1]).all()
+
+
+def test_photon_transfer_estimators_recover_the_noise_they_were_given():
+    shot, read = 2e-4, 1e-5
+    frames = _gaussian_burst(shot, read)
+    found_shot, found_read = photon_transfer.regression_shot_read(frames, np.full(4, -1.0))
+    np.testing.assert_allclose(found_shot, shot, rtol=0.05)
+    np.testing.assert_allclose(found_read, read, rtol=0.1)
+    nlf = photon_transfer.temporal_nlf(frames, pedestal=np.zeros(4), clip=np.full(4, 0.98), clip_low=np.full(4, -1.0),
+                                       edges=np.linspace(0.0, 0.7, 8))["all"]
+    ok = np.isfinite(nlf.variance)
+    z = (nlf.variance - (shot * nlf.signal + read)) / nlf.se
+    assert ok.sum() >= 20 and np.all(np.abs(z[ok]) < 4.5), z[ok]
+    fitted_shot, fitted_read = photon_transfer.fit_shot_read(nlf.signal, nlf.variance, nlf.se)
+    np.testing.assert_allclose(fitted_shot, shot, rtol=0.05)
+
+
+def test_a_moved_or_brighter_frame_is_not_the_burst_s_scene():
+    frames = _gaussian_burst(2e-4, 3e-6, n=6, seed=3)
+    assert bursts.scene_outliers(frames) == {}
+    moved = frames.copy()
+    moved[2] = np.roll(moved[2], 5, axis=-1)
+    brighter = frames.copy()
+    brighter[4] *= 1.08
+    assert list(bursts.scene_outliers(moved)) == [2] and "static scene" in bursts.scene_outliers(moved)[2]
+    assert list(bursts.scene_outliers(brighter)) == [4]
+
+
+def test_find_bursts_groups_files_by_thumbnail_up_to_a_gain():
+    rng = np.random.default_rng(4)
+    scene, other = rng.uniform(0.1, 1.0, (4, 16, 16)), rng.uniform(0.1, 1.0, (4, 16, 16))
+    file = lambda thumb, **extra: {"shape": (64, 64), "iso": 100.0, "thumbnail": thumb, **extra}
+    files = ([file(scene * g) for g in (1.0, 1.02, 0.97)] + [file(other)] + [file(scene, dark_frame=True)]
+             + [file(scene * 1.01), file(scene, iso=800.0)])
+    assert bursts.find_bursts(files) == [[0, 1, 2, 5]]
