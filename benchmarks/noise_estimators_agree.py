@@ -1,5 +1,5 @@
 """Do the noise estimators agree on the same pixels? Photon transfer over a synthetic burst
-(`g2r_jax.audit.bursts.temporal_nlf`, fitted by weighted least squares) and the profile fallback
+(`g2r_jax.measure.photon_transfer.temporal_nlf`, fitted by weighted least squares) and the profile fallback
 (`sensor.noise.fallback.measure_pooled`: flat 8 x 8 blocks of the 8 frames pooled), against the
 truth of `g2r_jax.audit.synthetic_bursts` (8 frames of 512 x 768, 10 and 14 bits).
 

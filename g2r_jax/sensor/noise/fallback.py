@@ -15,7 +15,7 @@ Issue 8: DNGs without NoiseProfile (e.g. Canon 350D conversions) or with an all-
   (files without an ISO count as 100). Nothing usable at all: a noiseless model at the files'
   ISOs, with a loud warning.
 
-Dark frames (`g2r_jax.sensor.dark_frames`, issue 29) give the read term of their ISO directly:
+Dark frames (`g2r_jax.measure.dark_frames`, issue 29) give the read term of their ISO directly:
 it replaces the read term of the tags or of the measurement at that ISO, and the measured shot
 term is refitted with the read term held there (`measure_pooled(fixed_read=...)`). Dark frames
 never enter the pooled flat blocks: their blocks' means are noise, and the bins they fall in
@@ -248,7 +248,7 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
     if used_dark:
         n_dark = sum(found.n_frames for found in used_dark.values())
         parts.append(f"read term from {n_dark} dark frame(s) (ISO {', '.join(f'{i:g}' for i in sorted(used_dark))}; "
-                     f"g2r_jax.sensor.dark_frames: variance per CFA site, hot pixels left out)")
+                     f"g2r_jax.measure.dark_frames: variance per CFA site, hot pixels left out)")
     if used_dark and not infos:
         warnings.warn(f"only dark frames ({sum(f.n_frames for f in used_dark.values())}): their read noise is "
                       "used, but no file with light gives the shot noise; the profile simulates NO SHOT NOISE",
