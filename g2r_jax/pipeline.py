@@ -17,6 +17,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from g2r_jax import content as _content
 from g2r_jax import sensor as _sensor
 from g2r_jax.colour import conversions as _colour
 from g2r_jax.colour import dng_model as _dng
@@ -113,7 +114,7 @@ def sample_conditions(key, profile, *, neutral=None, iso=None, exposure_gain=Non
 def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: bool = True,
                   effects: bool = True, highlight_safe: bool | None = None, recipe: str = "dng",
                   quantize: bool = True, lens_gain=None, colour: str = "matrix", valid_shape=None,
-                  return_clean: bool = False):
+                  return_clean: bool = False, content: bool | None = None):
     """Steps 1 and 5-7 of `unprocess`: the pixels, for `conditions` from `sample_conditions`.
 
     Returns the mosaic, or with `return_clean` the pair (mosaic, clean): clean is the same
@@ -129,6 +130,7 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
     """
     # 1. Decode display values to linear sRGB.
     linear = decode(image, "gamma2.2" if recipe == "published" else transfer)
+    linear = content_stage(linear, profile, content)
 
     # 5. Un-white-balance and mosaic in one step, scaled so that white reaches 1 in the
     #    strongest channel, then a global exposure gain.
@@ -159,6 +161,19 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
     return levels(mosaic), levels(jnp.minimum(signal, profile.effects.clip_level) if effects else signal)
 
 
+def content_stage(linear, profile, content: bool | None):
+    """Step 1b: the profile's content model (`g2r_jax.content`) on the scene-linear image, when
+    `content` is True, or None and the profile's model says `apply_by_default`; a profile without
+    one (every profile before issue 32) is left exactly as it was."""
+    model = getattr(profile, "content", None)
+    if content and model is None:
+        raise ValueError(f"content=True, but profile {profile.info.name!r} has no content model "
+                         "(g2r-fit-profile fits one)")
+    if model is None or content is False or (content is None and not model.apply_by_default):
+        return linear
+    return _content.apply(model, linear)
+
+
 def _check_image(image, ndim: int = 3):
     if image.ndim != ndim or image.shape[-1] != 3 or image.shape[-3] % 2 or image.shape[-2] % 2:
         expected = "(H, W, 3)" if ndim == 3 else "(B, H, W, 3)"
@@ -168,7 +183,7 @@ def _check_image(image, ndim: int = 3):
 def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=None,
               exposure_gain=None, noise: bool = True, effects: bool = True,
               highlight_safe: bool | None = None, recipe: str = "dng", quantize: bool = True, lens_gain=None,
-              colour: str = "matrix", return_clean: bool = False):
+              colour: str = "matrix", return_clean: bool = False, content: bool | None = None):
     """Turn one CG image into a RAW mosaic of the profiled camera.
 
     **Arguments:**
@@ -193,6 +208,8 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     - `lens_gain`: optional (4, H/2, W/2) gain a DNG renderer applies from the camera's
       lens-shading opcodes (`g2r_jax.lens_shading.shading_gain_planes`); the raw is divided by
       it, so that a renderer applying the opcode gets the scene back.
+    - `content`: apply the profile's content model (`g2r_jax.content`) to the scene-linear image
+      first: True, False, or None (default) as the profile's model says (`apply_by_default`).
     - `return_clean`: also return the clean mosaic (no noise, no banding; every deterministic
       effect kept), computed in the same pass: a denoiser's (input, target) pair.
 
@@ -211,7 +228,7 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     # Steps 1, 5-7: decode, un-white-balance and mosaic, sensor, levels.
     mosaic = render_mosaic(image, conditions, profile, transfer=transfer, noise=noise, effects=effects,
                            highlight_safe=highlight_safe, recipe=recipe, quantize=quantize, lens_gain=lens_gain,
-                           colour=colour, return_clean=return_clean)
+                           colour=colour, return_clean=return_clean, content=content)
     return (*mosaic, _metadata(conditions, colour)) if return_clean else (mosaic, _metadata(conditions, colour))
 
 
