@@ -60,6 +60,14 @@ def test_folds_with_groups_never_split_a_group(seed):
         measure.folds_of(4, 3, seed, groups=[0, 0, 1, 1])
 
 
+def test_distinct_groups_give_the_folds_of_no_groups():
+    """Files without duplicates (`duplicate_groups` labels 0..n-1) keep the folds drawn without groups."""
+    for n, k, seed in ((10, 3, 0), (31, 5, 7), (6, 2, 3)):
+        plain = measure.folds_of(n, k, seed)
+        grouped = measure.folds_of(n, k, seed, groups=np.arange(n))
+        assert all(np.array_equal(a, b) for a, b in zip(plain, grouped))
+
+
 def test_duplicate_groups_follow_the_pixels_not_the_name():
     a = np.arange(12, dtype=np.uint16).reshape(3, 4)
     labels = measure.duplicate_groups([a, a.copy(), a + 1, a.astype(np.float32), a])
