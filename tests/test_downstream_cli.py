@@ -112,3 +112,157 @@ def test_a_burst_too_short_is_refused_before_training(camera_folders, tmp_path, 
                          "--quiet")
     assert status == 2 and str(burst) in err
     assert not (tmp_path / "r" / "report.json").exists()
+
+
+# ----------------------------------------------------------------------------- issue 34's fuzz classes
+
+def _copy_folder(source, target, names=None):
+    target.mkdir()
+    for path in sorted(source.glob("real_*.dng")):
+        if names is None or path.name in names:
+            (target / path.name).write_bytes(path.read_bytes())
+    return target
+
+
+def test_report_folder_and_ranges_are_refused_up_front_by_option(camera_folders, tmp_path, capsys, monkeypatch):
+    dngs, cg = camera_folders
+    common = ["--measured", dngs, "--cg", cg, "--quiet"]
+    monkeypatch.chdir(tmp_path)
+    status, _, err = run(capsys, *common, "--report", "")
+    assert status == 2 and "--report ''" in err and not list(tmp_path.iterdir())
+    for report, word in ((dngs, "is the input folder --measured"), (cg / "sub", "inside the input folder --cg")):
+        status, _, err = run(capsys, *common, "--report", report)
+        assert status == 2 and word in err and not (cg / "sub").exists()
+    status, _, err = run(capsys, *common, "--report", "/proc/g2r_probe/x")
+    assert status == 2 and "--report /proc/g2r_probe/x" in err
+    status, _, err = run(capsys, *common, "--report", tmp_path / "r", "--seeds", 10 ** 30)
+    assert status == 2 and "--seeds" in err and "from 1 to 100" in err and "ssize_t" not in err
+    status, _, err = run(capsys, "--cg", cg, "--report", tmp_path / "r")
+    assert status == 2 and "--burst" in err and "--measured" in err
+    status, _, err = run(capsys, "--measured", dngs, "--report", tmp_path / "r")
+    assert status == 2 and "--measured needs --cg" in err
+    assert not (tmp_path / "r").exists()
+
+
+def test_probe_leaves_no_folder_behind(camera_folders, tmp_path, capsys):
+    dngs, cg = camera_folders
+    deep = tmp_path / "a" / "b" / "report"
+    status, out, _ = run(capsys, "--measured", dngs, "--cg", cg, "--report", deep, "--dry-run", "--quiet")
+    assert status == 1 and "dry run" in out and not (tmp_path / "a").exists()     # a dry run writes nothing
+    from g2r_jax.cli.downstream import _parser, report_folder_problem
+
+    args = _parser().parse_args(["--measured", str(dngs), "--cg", str(cg), "--report", str(deep)])
+    assert report_folder_problem(args) is None and not (tmp_path / "a").exists()
+
+
+def test_duplicates_are_read_once_or_kept_in_one_fold_and_named(camera_folders, tmp_path, capsys):
+    dngs, cg = camera_folders
+    copies = _copy_folder(dngs, tmp_path / "copies")
+    (copies / "copy_of_03.dng").write_bytes((dngs / "real_03.dng").read_bytes())
+    (copies / "copy_of_07.dng").write_bytes((dngs / "real_07.dng").read_bytes())
+    status, out, err = run(capsys, "--measured", copies, copies, "--cg", cg, "--report", tmp_path / "r", "--dry-run",
+                           "--quiet")
+    assert status == 0 and "16 real DNG(s)" in out                  # the folder given twice: each file once
+    assert "copy_of_03.dng" in err and "real_03.dng" in err and "one fold" in err
+    from g2r_jax.downstream import read_inputs
+    from g2r_jax.measure import folds_of
+
+    real = read_inputs([copies], folds=2).real
+    names = [f.rsplit("/", 1)[-1] for f in real.files]
+    groups = real.groups
+    assert groups[names.index("copy_of_03.dng")] == groups[names.index("real_03.dng")]
+    assert len(set(groups)) == 14
+    for fold in folds_of(len(groups), 3, 0, groups=groups):
+        assert all(set(np.flatnonzero(groups == groups[i])) <= set(fold) for i in fold)
+
+
+def test_experiment_never_tests_a_file_on_its_own_copy(monkeypatch):
+    """A 1-nearest-neighbour 'estimator' remembers its training images: were a copy on the other
+    side of a split, its error would be 0 (the issue's real-training row 4.60 -> 1.30 deg)."""
+    from g2r_jax.downstream import estimators, experiment, real_sets
+    from g2r_jax.measure import duplicate_groups
+
+    rng = np.random.default_rng(0)
+    images = rng.random((12, 64, 64, 3)).astype(np.float32)
+    lights = rng.uniform(0.2, 0.5, (12, 3))
+    images[6:], lights[6:] = images[:6], lights[:6]               # every file twice
+    real = real_sets.RealSet("twice", images, lights / lights.sum(1, keepdims=True), groups=duplicate_groups(images))
+
+    def nearest(name, train_images, train_lights, seed=0):
+        flat = train_images.reshape(len(train_images), -1)
+        return lambda test: train_lights[np.argmin(((test.reshape(len(test), 1, -1) - flat) ** 2).sum(-1), axis=1)]
+
+    monkeypatch.setattr(estimators, "train_estimator", nearest)
+    result = experiment.illuminant_experiment(real, g2r_jax.load_profile("NikonD40"), [images[0]], rows=("real",),
+                                              estimators=("moments",), seeds=(0,), n=50, folds=3)
+    assert result.errors[("real", "moments")][0].min() > 0.5
+
+
+def _write(folder, name, mosaic, info):
+    from g2r_jax.io.dng_write import write_dng
+
+    write_dng(folder / name, mosaic, info)
+
+
+def test_a_file_with_other_calibration_tags_or_constant_pixels_is_left_out_by_name(camera_folders, tmp_path, capsys):
+    import dataclasses
+
+    from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels
+
+    dngs, cg = camera_folders
+    folder = _copy_folder(dngs, tmp_path / "mixed")
+    info = read_dng_info(dngs / "real_00.dng")
+    mosaic = read_dng_pixels(dngs / "real_00.dng", info)
+    other = tuple(reversed(info.calibration_illuminants)) if len(set(info.calibration_illuminants)) > 1 else (17, 21)
+    _write(folder, "zz_other_calibration.dng", mosaic[::-1].copy(),
+           dataclasses.replace(info, calibration_illuminants=(23, 10) if other == info.calibration_illuminants else other))
+    _write(folder, "zz_constant.dng", np.full_like(mosaic, 700), info)
+    status, out, err = run(capsys, "--measured", folder, "--cg", cg, "--report", tmp_path / "r", "--dry-run",
+                           "--profile", "NikonD40", "--quiet")
+    assert status == 1 and "14 real DNG(s)" in out
+    assert "zz_constant.dng" in err and "every pixel reads 700" in err
+    lines = [line for line in err.splitlines() if "zz_other_calibration.dng" in line]
+    assert lines and "calibration illuminants" in lines[0]
+
+
+def test_labels_of_one_light_are_refused_by_folder_with_what_is_needed(camera_folders, tmp_path, capsys):
+    import dataclasses
+
+    from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels
+
+    dngs, cg = camera_folders
+    folder = tmp_path / "one_light"
+    folder.mkdir()
+    neutral = read_dng_info(dngs / "real_00.dng").as_shot_neutral
+    for path in sorted(dngs.glob("real_*.dng")):
+        info = read_dng_info(path)
+        _write(folder, path.name, read_dng_pixels(path, info), dataclasses.replace(info, as_shot_neutral=neutral))
+    status, _, err = run(capsys, "--measured", folder, "--cg", cg, "--report", tmp_path / "r", "--quiet")
+    assert status == 2 and str(folder) in err and "1 distinct light" in err and "at least 3" in err
+    assert not (tmp_path / "r").exists()
+
+
+def test_burst_alone_needs_no_colour_set_and_oversized_cg_names_the_option(camera_folders, tmp_path, capsys):
+    from g2r_jax.downstream.bursts import write_synthetic_burst
+
+    dngs, cg = camera_folders
+    burst = tmp_path / "burst"
+    burst.mkdir()
+    write_synthetic_burst(burst, g2r_jax.load_profile("NikonD40"), n_frames=4, height=128, width=160)
+    status, out, _ = run(capsys, "--burst", burst, "--report", tmp_path / "r", "--dry-run", "--quiet")
+    assert status == 0 and "a burst of 4 frames" in out
+    status, _, err = run(capsys, "--measured", dngs, "--cg", cg, "--report", tmp_path / "r", "--dry-run", "--quiet",
+                         "--max-megapixels", 0.01)
+    assert status == 2 and "over the budget" in err and "--max-megapixels" in err   # every CG image refused
+    assert "render_0.png" in err
+
+
+def test_the_commands_page_lists_every_option():
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "pages" / "commands.md").read_text()
+    section = page.split("\n## g2r-downstream\n", 1)[1].split("\n## ", 1)[0]
+    for action in downstream._parser()._actions:
+        if action.help != "==SUPPRESS==":
+            for option in action.option_strings:
+                assert option in section, f"docs/pages/commands.md: g2r-downstream {option} missing (paste its --help)"

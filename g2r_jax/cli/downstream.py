@@ -33,7 +33,7 @@ def _parser() -> argparse.ArgumentParser:
         "training is the profile and how much the CG content. With --burst, also (or only) the "
         "denoising check.", EXAMPLES)
     required = required_group(parser)
-    required.add_argument("--report", required=True, type=Path, metavar="DIR",
+    required.add_argument("--report", required=True, metavar="DIR",
                           help="folder for report.json, report.md and the plot (created if missing; not an input "
                                "folder)")
     parser.add_argument("--measured", nargs="+", metavar="DNG_DIR",
@@ -58,8 +58,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--max-megapixels", type=float, default=100.0, metavar="MPX",
                         help="refuse CG images larger than this (0: no limit)")
     parser.add_argument("--dry-run", action="store_true",
-                        help="read and check every input and the profile, say what would be used and left out, "
-                             "train nothing and write no report")
+                        help="read and check every input, the profile and the report folder, say what would be "
+                             "used and left out; train nothing and write no report")
     add_common_flags(parser)
     return parser
 
@@ -94,18 +94,18 @@ def report_folder_problem(args) -> str | None:
     writable (tried by creating and removing a probe file, and any folders made for it)."""
     import tempfile
 
-    if not str(args.report).strip():
-        return "--report '': empty; give the folder for the report"
-    report = Path(os.path.abspath(args.report))
+    if not args.report.strip():
+        return f"--report {args.report!r}: empty; give the folder for the report"
+    report = Path(os.path.realpath(args.report))
     inputs = [("--measured", m) for m in args.measured or ()] + [("--cg", c) for c in args.cg or ()]
     inputs += [("--burst", args.burst)] if args.burst else []
     for option, item in inputs:
-        folder = Path(os.path.abspath(item))
+        folder = Path(os.path.realpath(item))
         if Path(item).is_dir() and (report == folder or folder in report.parents):
             return (f"--report {args.report}: is the input folder {option} {item}" if report == folder else
                     f"--report {args.report}: is inside the input folder {option} {item}") + "; give another folder"
-    problem = output_folder_problem("--report", args.report)
-    if problem or args.dry_run:
+    problem = output_folder_problem("--report", Path(args.report))
+    if problem:
         return problem
     made = [p for p in [report, *report.parents] if not p.exists()]
     try:

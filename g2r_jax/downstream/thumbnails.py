@@ -17,13 +17,14 @@ SIZE = 64
 SATURATED = 0.98   # of the range: at or above this a pixel counts as clipped
 
 
-def _tile_rgb(mosaics, cfa_pattern, black_level, white_level):
-    """(B, H, W) DN -> (B, H/2, W/2, 3) camera RGB in [0, 1] of the range, greens averaged."""
-    black = jnp.broadcast_to(jnp.asarray(black_level, jnp.float32).reshape(-1), (4,))
-    span = jnp.asarray(white_level, jnp.float32) - black
-    sites = jnp.stack([(mosaics[:, i::2, j::2] - black[2 * i + j]) / span[2 * i + j]
-                       for i in range(2) for j in range(2)], -1)                 # (B, H/2, W/2, 4)
-    membership = (jnp.asarray(cfa_pattern).reshape(4, 1) == jnp.arange(3)).astype(jnp.float32)   # (4, 3)
+def _tile_rgb(mosaics, cfa_pattern, black_level, white_level, xp=jnp):
+    """(B, H, W) DN -> (B, H/2, W/2, 3) camera RGB in [0, 1] of the range, greens averaged; `xp`
+    is the array module (jax.numpy inside compiled code, numpy for one file of any size)."""
+    black = xp.broadcast_to(xp.asarray(black_level, xp.float32).reshape(-1), (4,))
+    span = xp.asarray(white_level, xp.float32) - black
+    sites = xp.stack([(mosaics[:, i::2, j::2] - black[2 * i + j]) / span[2 * i + j]
+                      for i in range(2) for j in range(2)], -1)                  # (B, H/2, W/2, 4)
+    membership = (xp.asarray(cfa_pattern).reshape(4, 1) == xp.arange(3)).astype(xp.float32)   # (4, 3)
     return sites @ (membership / membership.sum(0))
 
 
@@ -81,7 +82,8 @@ def camera_rgb_thumbnail(rgb: np.ndarray) -> np.ndarray:
 
 
 def mosaic_to_camera_rgb(mosaic: np.ndarray, cfa_pattern, black_level, white_level) -> np.ndarray:
-    """One mosaic (H, W) in DN -> (H/2, W/2, 3) camera RGB in [0, 1] of the range (numpy)."""
+    """One mosaic (H, W) in DN -> (H/2, W/2, 3) camera RGB in [0, 1] of the range (numpy: no
+    compiled program per file size)."""
     mosaic = np.asarray(mosaic)[: mosaic.shape[0] // 2 * 2, : mosaic.shape[1] // 2 * 2]
-    rgb = _tile_rgb(jnp.asarray(mosaic, jnp.float32)[None], cfa_pattern, black_level, white_level)[0]
-    return np.clip(np.asarray(rgb), 0.0, 1.0)
+    rgb = _tile_rgb(mosaic.astype(np.float32)[None], np.asarray(cfa_pattern), black_level, white_level, xp=np)[0]
+    return np.clip(rgb, 0.0, 1.0)
