@@ -38,6 +38,8 @@ _HEADER_BYTES = 8            # TIFF header: byte order, 42, offset of IFD0
 _IFD_ENTRY_BYTES = 12
 _LOSSLESS_JPEG = 7
 _UNCOMPRESSED = 1
+_PHOTOMETRIC_CFA = 32803
+_TOKEN_BYTES = 65536           # pixel data this large is there: its size must fit the tags
 MAX_SHARE_ABOVE_WHITE = 0.01   # share of values allowed far above WhiteLevel (hot pixels)
 FAR_ABOVE_WHITE = 1.5          # "far above": over 1.5 x WhiteLevel. Some cameras tag the end of the
                                # linear range and their highlights run past it, never this far
@@ -60,6 +62,7 @@ class _Layout:
     """The raw IFD's segment geometry, read from the tags as stored (tifffile repairs some)."""
 
     kind: str            # 'strips' or 'tiles'
+    photometric: int
     width: int
     height: int
     samples: int         # samples per pixel in one segment (1 when planar-separate)
@@ -101,7 +104,7 @@ def _layout(page) -> _Layout:
         rows = min(rows_tag[0], height) if rows_tag and rows_tag[0] > 0 else height
         across = width
     offsets_code, counts_code = _OFFSET_TAGS[kind]
-    return _Layout(kind, width, height, 1 if separate else samples, samples if separate else 1, bits,
+    return _Layout(kind, int(page.photometric or 0), width, height, 1 if separate else samples, samples if separate else 1, bits,
                    int(page.compression), max(rows, 0), max(across, 0),
                    _values(page, offsets_code), _values(page, counts_code))
 
@@ -121,6 +124,11 @@ def _structure_ranges(pages) -> list:
 
 
 def _geometry_refusal(layout: _Layout) -> Optional[str]:
+    if layout.photometric == _PHOTOMETRIC_CFA and layout.samples * layout.planes != 1:
+        return (f"SamplesPerPixel {layout.samples * layout.planes}, but a CFA image has one sample per pixel "
+                "(DNG spec ch. 4 'SamplesPerPixel')")
+    if layout.samples < 1:
+        return f"SamplesPerPixel {layout.samples} is not a number of samples"
     if not 1 <= layout.bits <= 32:
         return f"BitsPerSample {layout.bits} is outside 1..32"
     if layout.width < 1 or layout.height < 1:
@@ -224,10 +232,10 @@ def _missing_warning(layout: _Layout, file_size: int) -> Optional[str]:
 
 
 def _data_present(layout: _Layout) -> bool:
-    """Whether the segments hold a real share of the pixels (at least one bit per sample), as
+    """Whether the segments hold pixel data (at least one bit per sample, or `_TOKEN_BYTES`), as
     against a header-only file whose pixel data was left out."""
     samples = layout.width * layout.height * layout.samples * layout.planes
-    return sum(layout.counts) >= samples // 8
+    return sum(layout.counts) >= min(samples // 8, _TOKEN_BYTES)
 
 
 def _segment_count_refusal(layout: _Layout) -> Optional[str]:
