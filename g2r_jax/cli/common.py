@@ -17,7 +17,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from g2r_jax.cli.text import MAX_MESSAGE, MAX_SHOWN, one_line, shown  # noqa: F401  (the commands' one vocabulary)
+from g2r_jax.io.text import MAX_MESSAGE, MAX_SHOWN, one_line, shown  # noqa: F401  (the commands' one vocabulary)
 
 _PACKAGE_DIR = str(Path(__file__).resolve().parents[1])
 # Text that betrays a message from the numerical libraries rather than from g2r_jax.

@@ -18,7 +18,7 @@ import socket
 import sys
 import threading
 
-from g2r_jax.cli.text import shown
+from g2r_jax.io.text import shown
 from g2r_jax.io import atomic
 from g2r_jax.io.output_folder import open_folders
 

@@ -6,7 +6,7 @@
   then per camera a name line and three lines (R, G, B) of 33 values, 400-720 nm at 10 nm.
 - CSV with a header `wavelength,r,g,b` (nm, any spacing, ascending).
 
-Every result is resampled to the spectral model's grid (`g2r_jax.spectral.tables.WAVELENGTHS`) and
+Every result is resampled to the spectral model's grid (`g2r_jax.io.spectral_grid.WAVELENGTHS`) and
 normalised so that the green channel's peak is 1. Bad input raises `DngError(path, problem)`.
 """
 
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from g2r_jax.cli.text import shown
+from g2r_jax.io.text import shown
 from g2r_jax.io.dng_info import DngError
 
 CAMSPEC_WAVELENGTHS = np.arange(400.0, 721.0, 10.0)
@@ -63,7 +63,7 @@ def _check(path, wavelengths, values) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _on_grid(path, wavelengths, values) -> np.ndarray:
-    from g2r_jax.colour.spectral.tables import resample
+    from g2r_jax.io.spectral_grid import resample
 
     wavelengths, values = _check(path, wavelengths, values)
     return normalise(resample(wavelengths, values))

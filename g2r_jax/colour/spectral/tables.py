@@ -13,31 +13,12 @@ import functools
 
 import numpy as np
 
-WAVELENGTHS = np.arange(380.0, 781.0, 5.0)     # nm; 81 samples
+from g2r_jax.io.spectral_grid import WAVELENGTHS, resample  # noqa: F401  (the grid is defined where it is read)
+from g2r_jax.io.spectral_grid import spectral_shape as _shape
+
 OBSERVER = "CIE 1931 2 Degree Standard Observer"
 LAMP_FAMILIES = ("FL2", "FL11", "LED-B3", "LED-B1", "HP1", "HP2")  # CIE 15:2018 tables in colour-science
 LOCUS_MIRED = np.linspace(1e6 / 25000.0, 1e6 / 1500.0, 128)   # table of the locus spectra
-
-
-def _shape():
-    import colour
-
-    return colour.SpectralShape(WAVELENGTHS[0], WAVELENGTHS[-1], WAVELENGTHS[1] - WAVELENGTHS[0])
-
-
-def resample(wavelengths, values, *, outside: float | None = 0.0) -> np.ndarray:
-    """Values sampled at `wavelengths` (N,) or (N, C) -> the grid (81,) or (81, C), by
-    colour-science's interpolation (Sprague / cubic spline); outside the measured range the value
-    is `outside` (0: a sensitivity measured from 400 nm has nothing below), or the end value if None."""
-    import colour
-
-    wavelengths = np.asarray(wavelengths, np.float64)
-    values = np.asarray(values, np.float64)
-    extrapolation = ({"method": "Constant"} if outside is None
-                     else {"method": "Constant", "left": outside, "right": outside})
-    kind = colour.SpectralDistribution if values.ndim == 1 else colour.MultiSpectralDistributions
-    data = kind(values, wavelengths, extrapolator_kwargs=extrapolation)
-    return np.asarray(data.copy().align(_shape()).values, np.float64)
 
 
 @functools.lru_cache(maxsize=None)
