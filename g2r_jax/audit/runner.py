@@ -2,10 +2,16 @@
 held-out gain) and an extended profile. Steps follow issue 3: statistics on measured and
 simulated files, a test per statistic, a cause per significant difference, an extension fitted
 on fit splits and kept only if it lowers the held-out discrepancy.
+
+`diagnose` owns the order of the steps; each step is a plain function of the shared `Audit`
+state (measure the files, plan the scenes, simulate, explain away one difference at a time,
+assemble the report).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import os
 import time
 import warnings
@@ -89,6 +95,43 @@ def simulation_sizes(shapes, n_simulated: int) -> list[tuple[tuple[int, int], in
     return [(size, count) for size, count in zip(kept, shares) if count > 0]
 
 
+@dataclasses.dataclass
+class Audit:
+    """What the steps of one audit share (`diagnose` owns their order).
+
+    Fixed once the measured files are read: the profile under audit, the causes tested on files
+    (`registry`, by name in `by_name`), the measured items (`sources`, paths or in-memory pairs),
+    whether outlier statistics are computed, the seed, the progress callback and the per-test
+    threshold. Updated as the audit goes: the measured files' statistics (`measured_stats`), the
+    independent scenes among them (`units`) and the bursts (`groups`), the scenes simulated from
+    (`scene_groups`, `scene_keys`) and the statistics of every profile simulated so far
+    (`simulated_sets`); while explaining away, the extended profile, the simulated statistics it
+    gives (`current_stats`), the findings (`done`), the unexplained differences and the causes
+    still to test (`remaining`)."""
+    profile: object
+    registry: tuple
+    by_name: dict
+    sources: list
+    with_outliers: bool
+    seed: int
+    say: object
+    n_items: int
+    measured_stats: list = dataclasses.field(default_factory=list)
+    units: list = dataclasses.field(default_factory=list)
+    groups: list = dataclasses.field(default_factory=list)
+    with_lens: bool = False
+    scene_groups: list = dataclasses.field(default_factory=list)
+    scene_keys: list = dataclasses.field(default_factory=list)
+    simulated_sets: dict = dataclasses.field(default_factory=dict)
+    threshold: float = 0.0
+    black_files: list = dataclasses.field(default_factory=list)
+    extended: object = None
+    current_stats: list = dataclasses.field(default_factory=list)
+    unexplained: list = dataclasses.field(default_factory=list)
+    done: list = dataclasses.field(default_factory=list)
+    remaining: list = dataclasses.field(default_factory=list)
+
+
 def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = None, seed: int = 0,
              alpha: float = 0.01, folds: int = 3, n_permutations: int = 2000, progress=None,
              causes=None, on_error=None, charts=None) -> dict:
@@ -125,38 +168,66 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
     chart_report = _explain_with_charts(chart_causes, profile, charts, alpha / max(tests, 1), folds, n_permutations,
                                         seed, say) if charts is not None else None
     if measured is None:
-        if chart_report is None:
-            raise ValueError("nothing to audit: give measured DNG files, charts, or both")
-        chart_report.update(alpha=alpha, tests=tests, threshold_p=alpha / max(tests, 1), seed=seed,
-                            profile_name=str(getattr(profile.info, "name", "") or ""),
-                            timing={"total_s": time.perf_counter() - started})
-        return chart_report
-    by_name = {c.name: c for c in registry}
+        return _charts_only(chart_report, profile, alpha, tests, seed, started)
     items = list(measured)
     if not items:
         raise ValueError("no measured files to audit")
     items = loading.check_measured(items, on_error=on_error)
+    audit = Audit(profile=profile, registry=registry, by_name={c.name: c for c in registry}, sources=items,
+                  with_outliers=len(items) >= MIN_FILES_FOR_DEFECTS, seed=seed, say=say, n_items=len(items))
     say(f"statistics of {len(items)} measured files")
-    with_outliers = len(items) >= MIN_FILES_FOR_DEFECTS
+    measure_files(audit, on_error)
+    sizes = plan_scenes(audit, scenes, n_simulated)
+    say(f"simulating {sum(count for _, count in sizes)} files")
+    simulated_stats = simulate_stats(audit, profile)
+    timing = {"statistics_s": time.perf_counter() - started}
+    audit.threshold = alpha / tests
+    audit.black_files = [f for f in audit.measured_stats if f.get("black") is not None]
+    start_explaining(audit, chart_report, simulated_stats)
+    while explain_next(audit, folds=folds, n_permutations=n_permutations):
+        pass
+    findings = final_findings(audit, chart_causes, simulated_stats)
+    timing["total_s"] = time.perf_counter() - started
+    return assemble_report(audit, findings, chart_report, sizes, alpha=alpha, tests=tests, timing=timing)
 
-    def statistics_of(index_item, pedestal_dn=None):
-        # one file in memory per worker: statistics are small, 12-MP mosaics are not
-        index, item = index_item
-        try:
-            (mosaic, info), = loading.load_measured([item])
-        except DngError as error:
-            return error
-        found = stats.file_statistics(mosaic, info, profile, with_outliers=with_outliers, seed=seed + index,
-                                      nlf_tiles=evidence.tiles_per_half(len(items)), pedestal_dn=pedestal_dn)
-        found["item"] = index
-        found["pedestal_dn"] = np.resize(np.asarray(profile.effects.black_pedestal if pedestal_dn is None
-                                                    else pedestal_dn, np.float64), 4)   # the black it is measured from
-        return found
 
+def _charts_only(chart_report, profile, alpha, tests, seed, started) -> dict:
+    """The report of an audit of measured charts alone."""
+    if chart_report is None:
+        raise ValueError("nothing to audit: give measured DNG files, charts, or both")
+    chart_report.update(alpha=alpha, tests=tests, threshold_p=alpha / max(tests, 1), seed=seed,
+                        profile_name=str(getattr(profile.info, "name", "") or ""),
+                        timing={"total_s": time.perf_counter() - started})
+    return chart_report
+
+
+# ----------------------------------------------------------------------------- measured files
+
+def statistics_of(audit: Audit, index: int, item, pedestal_dn=None):
+    """The statistics of measured item `index` (a DngError instead when it cannot be read),
+    measured from the profile's black or from `pedestal_dn` (DN above the tag) when given. One
+    file in memory per worker: statistics are small, 12-MP mosaics are not."""
+    try:
+        (mosaic, info), = loading.load_measured([item])
+    except DngError as error:
+        return error
+    profile = audit.profile
+    found = stats.file_statistics(mosaic, info, profile, with_outliers=audit.with_outliers, seed=audit.seed + index,
+                                  nlf_tiles=evidence.tiles_per_half(audit.n_items), pedestal_dn=pedestal_dn)
+    found["item"] = index
+    found["pedestal_dn"] = np.resize(np.asarray(profile.effects.black_pedestal if pedestal_dn is None
+                                                else pedestal_dn, np.float64), 4)   # the black it is measured from
+    return found
+
+
+def measure_files(audit: Audit, on_error) -> None:
+    """Statistics of every measured file (unreadable ones to `on_error`, or raised), measured
+    again from the black that scene-independent evidence shows where it differs from the
+    profile's, and the bursts' temporal noise."""
     measured_stats = []
     # numpy releases the GIL in the large array operations, so files overlap on several cores
-    with ThreadPoolExecutor(max(1, min(MEASURED_WORKERS, len(items), _cores()))) as pool:
-        for result in pool.map(statistics_of, enumerate(items)):
+    with ThreadPoolExecutor(max(1, min(MEASURED_WORKERS, len(audit.sources), _cores()))) as pool:
+        for result in pool.map(lambda pair: statistics_of(audit, *pair), enumerate(audit.sources)):
             if isinstance(result, DngError):
                 if on_error is None:
                     raise result
@@ -164,39 +235,51 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
                 continue
             measured_stats.append(result)
     if not measured_stats:
-        raise DngError(loading.folder_of(items), "no usable measured DNG files")
-    sources = items
-
-    def measured_again(files, black_dn):
-        """The files' statistics measured from another black (DN above the tag), bursts included."""
-        with ThreadPoolExecutor(max(1, min(MEASURED_WORKERS, len(sources), _cores()))) as pool:
-            files = list(pool.map(lambda f: statistics_of((f["item"], sources[f["item"]]), black_dn), files))
-        return files, with_bursts(files, black_dn)
-
-    def with_bursts(files, black_dn):
-        units, groups = independent_files(files)
-        for group in groups:
-            say(f"photon transfer over a burst of {len(group)} frames")
-            first = files[group[0]]
-            first["temporal"] = burst_noise([sources[files[i]["item"]] for i in group], first, profile, black_dn)
-        return units, groups
-
-    pedestal = measured_black(measured_stats, profile)
+        raise DngError(loading.folder_of(audit.sources), "no usable measured DNG files")
+    audit.measured_stats = measured_stats
+    pedestal = measured_black(measured_stats, audit.profile)
     if pedestal is not None:   # scene-independent evidence of another black: measure from it
-        say("black level differs from the profile's: statistics measured from the measured black")
-        measured_stats, (units, groups) = measured_again(measured_stats, pedestal)
+        audit.say("black level differs from the profile's: statistics measured from the measured black")
+        measure_again(audit, pedestal)
     else:
-        units, groups = with_bursts(measured_stats, None)
-    items = [f["name"] for f in measured_stats]
-    shapes = [f["shape"] for f in (units or measured_stats)]
-    with_lens = lens_shading_in(measured_stats)
-    n_sim = n_simulated or max(24, len(units) or len(items))   # scenes: dark frames and bursts are not
+        with_bursts(audit, None)
+    audit.with_lens = lens_shading_in(audit.measured_stats)
+
+
+def measure_again(audit: Audit, black_dn) -> None:
+    """The measured files' statistics measured from another black (DN above the tag), bursts included."""
+    files = audit.measured_stats
+    with ThreadPoolExecutor(max(1, min(MEASURED_WORKERS, len(audit.sources), _cores()))) as pool:
+        audit.measured_stats = list(pool.map(
+            lambda f: statistics_of(audit, f["item"], audit.sources[f["item"]], black_dn), files))
+    with_bursts(audit, black_dn)
+
+
+def with_bursts(audit: Audit, black_dn) -> None:
+    """The independent scenes and bursts of the measured files; each burst's first frame carries
+    its temporal noise, measured from `black_dn` (the profile's pedestal when None)."""
+    files = audit.measured_stats
+    audit.units, audit.groups = independent_files(files)
+    for group in audit.groups:
+        audit.say(f"photon transfer over a burst of {len(group)} frames")
+        first = files[group[0]]
+        first["temporal"] = burst_noise([audit.sources[files[i]["item"]] for i in group], first, audit.profile, black_dn)
+
+
+# ----------------------------------------------------------------------------- simulation
+
+def plan_scenes(audit: Audit, scenes, n_simulated) -> list:
+    """The scenes the simulated files are made from (`audit.scene_groups`, with g2r-convert's
+    keys for a folder of scene files) mirroring the measured sizes; returns [((h, w), count)]."""
+    shapes = [f["shape"] for f in (audit.units or audit.measured_stats)]
+    n_sim = n_simulated or max(24, len(audit.units) or len(audit.measured_stats))   # scenes: dark frames and bursts are not
     sizes = simulation_sizes(shapes, n_sim)
+    seed = audit.seed
     if scenes is None:
-        scene_groups = [scene_set(count, seed + 7919 + 97 * k, h, w) for k, ((h, w), count) in enumerate(sizes)]
-        scene_keys = [None] * len(scene_groups)
+        audit.scene_groups = [scene_set(count, seed + 7919 + 97 * k, h, w) for k, ((h, w), count) in enumerate(sizes)]
+        audit.scene_keys = [None] * len(audit.scene_groups)
     elif isinstance(scenes, np.ndarray):
-        scene_groups, scene_keys = [scenes], [None]
+        audit.scene_groups, audit.scene_keys = [scenes], [None]
     else:
         # scene files are simulated with g2r-convert's key for (seed, file name): the audit's
         # simulated file of a scene is then the file `g2r-convert --seed SEED` writes for it
@@ -205,137 +288,193 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         for name in names:   # a folder of fewer scenes than files is cycled: a repeat gets the next seed's key
             keys.append(file_key(seed + seen.get(name, 0), name))
             seen[name] = seen.get(name, 0) + 1
-        scene_groups, scene_keys = [loaded], [keys]
-    sizes = [(tuple(int(v) for v in group.shape[1:3]), len(group)) for group in scene_groups]
-    n_sim = sum(count for _, count in sizes)
+        audit.scene_groups, audit.scene_keys = [loaded], [keys]
+    return [(tuple(int(v) for v in group.shape[1:3]), len(group)) for group in audit.scene_groups]
 
-    simulated_sets = {}   # a profile simulated before (the same extension fitted again) is not simulated twice
 
-    def simulate_stats(p, cause="all"):
-        outliers = with_outliers and (cause == "all" or by_name[cause].needs_outliers)
-        key = simulate.profile_key(p)
-        if key in simulated_sets and (simulated_sets[key][0] or not outliers):
-            return simulated_sets[key][1]
-        sim = [file for k, group in enumerate(scene_groups)
-               for file in simulate.simulate(p, group, seed + 104729 + 97 * k, keys=scene_keys[k], lens_shading=with_lens)]
-        with ThreadPoolExecutor(max(1, min(MEASURED_WORKERS, _cores()))) as pool:
-            result = list(pool.map(lambda i: stats.file_statistics(*sim[i], p, seed=seed + 7 * i,
-                                                                   with_outliers=outliers), range(len(sim))))
-        simulated_sets[key] = (outliers, result)
-        return result
+def simulate_stats(audit: Audit, profile, cause: str = "all") -> list:
+    """Statistics of the files `profile` simulates from the audit's scenes (a profile simulated
+    before, e.g. the same extension fitted again, is not simulated twice)."""
+    outliers = audit.with_outliers and (cause == "all" or audit.by_name[cause].needs_outliers)
+    key = simulate.profile_key(profile)
+    cached = audit.simulated_sets.get(key)
+    if cached is not None and (cached[0] or not outliers):
+        return cached[1]
+    seed = audit.seed
+    sim = [file for k, group in enumerate(audit.scene_groups)
+           for file in simulate.simulate(profile, group, seed + 104729 + 97 * k, keys=audit.scene_keys[k],
+                                         lens_shading=audit.with_lens)]
+    with ThreadPoolExecutor(max(1, min(MEASURED_WORKERS, _cores()))) as pool:
+        result = list(pool.map(lambda i: stats.file_statistics(*sim[i], profile, seed=seed + 7 * i,
+                                                               with_outliers=outliers), range(len(sim))))
+    audit.simulated_sets[key] = (outliers, result)
+    return result
 
-    say(f"simulating {n_sim} files")
-    simulated_stats = simulate_stats(profile)
-    timing = {"statistics_s": time.perf_counter() - started}
 
-    threshold = alpha / tests
+# ----------------------------------------------------------------------------- explaining away
 
-    black_files = [f for f in measured_stats if f.get("black") is not None]
+def evidence_of(audit: Audit, cause) -> list:
+    """The measured files a cause is tested on: for the black level those with black-level
+    evidence (dark frames, optical-black pixels; all files when none has any, to say so), so
+    that its cross-validation folds hold evidence; for the others the independent scenes
+    (`independent_files`)."""
+    return (audit.black_files or audit.measured_stats) if cause.name == "black_level" else audit.units
 
-    def evidence_of(cause):
-        """The measured files a cause is tested on: for the black level those with black-level
-        evidence (dark frames, optical-black pixels; all files when none has any, to say so), so
-        that its cross-validation folds hold evidence; for the others the independent scenes
-        (`independent_files`)."""
-        return (black_files or measured_stats) if cause.name == "black_level" else units
 
-    def test_all(causes, sim_stats, current):
-        out = []
-        for cause in causes:
-            if not evidence_of(cause):
-                continue
-            finding = cause.test(evidence_of(cause), sim_stats, current, n_permutations=n_permutations, seed=seed)
-            finding["significant"] = cause.is_significant(finding, threshold)
-            finding["tolerance"] = cause.tolerance
-            finding["params"], finding["gain"] = {}, None
-            out.append(finding)
-        return sorted(out, key=rank)
-
-    # Explain away: take the strongest significant difference, validate its extension on held-out
-    # files, and if kept re-simulate with it and re-test the rest (a difference that another
-    # cause's extension reproduces is not a finding of its own).
-    extended, current_stats, unexplained, done = profile, simulated_stats, [], []
-    if chart_report is not None:   # colour first: the sensor causes are then tested against it
-        extended, unexplained, done = chart_report["profile"], chart_report["unexplained"], chart_report["findings"]
-        current_stats = simulate_stats(extended) if extended is not profile else simulated_stats
-    remaining = list(registry)
-    while remaining:
-        results = test_all(remaining, current_stats, extended)
-        if not results:
-            break
-        top = results[0]
-        if not top["significant"]:
-            done.extend(results)
-            break
-        cause = next(c for c in remaining if c.name == top["cause"])
-        remaining.remove(cause)
-        if not cause.extensible:
-            unexplained.append({"statistic": top["statistic"], "candidate": None, "score": top["score"],
-                                "evidence": top["evidence"]})
-            done.append(dict(top, cause=UNEXPLAINED, kept=False, source=cause.name))
+def test_all(audit: Audit, causes, n_permutations: int) -> list:
+    """Every cause in `causes` tested against the current profile's simulation, ranked (`rank`)."""
+    out = []
+    for cause in causes:
+        files = evidence_of(audit, cause)
+        if not files:
             continue
-        say(f"cross-validating the {cause.name} extension")
-        files = evidence_of(cause)
-        top["gain"] = gain.cross_validate(cause, files, current_stats, extended, simulate_stats,
-                                          folds=min(folds, len(files)), seed=seed)
-        rival = (scene_pedestal.weigh(top, files, current_stats, extended, folds=folds, seed=seed)
-                 if cause.name in PEDESTAL_RIVALS and not black_files and "black_level" in {c.name for c in remaining}
-                 else None)
-        if rival is not None and rival["verdict"] == "black_level":
-            # a pedestal explains the difference better: keep it, measure the files from it, test the rest again
-            say(f"a black pedestal of {rival['pedestal_dn']:.1f} DN explains the {cause.name} difference better")
-            black = by_name["black_level"]
-            remaining.remove(black)
-            remaining.append(cause)
-            done.append(pedestal_finding(black, top, rival, extended))
-            extended = black.apply(extended, done[-1]["params"])
-            measured_stats, (units, groups) = measured_again(measured_stats, np.full(4, rival["pedestal_dn"]))
-            current_stats = simulate_stats(extended)
-            continue
-        if rival is not None:   # the data cannot tell the pedestal from this cause: name neither
-            say(f"the {cause.name} difference could as well be a black pedestal: not fitted")
-            words = f"{top['evidence']}; or {rival['evidence']}: the two cannot be told apart, {scene_pedestal.DECIDES}"
-            unexplained.append({"statistic": top["statistic"], "candidate": cause.name, "alternative": "black_level",
-                                "score": top["score"], "evidence": words, "decide_with": scene_pedestal.DECIDES})
-            done.append(dict(top, cause=UNEXPLAINED, candidate=cause.name, source=cause.name, kept=False,
-                             alternative="black_level", decide_with=scene_pedestal.DECIDES, evidence=words,
-                             pedestal=rival))
-            continue
-        if top["gain"]["after"] < top["gain"]["before"]:
-            top["params"] = cause.fit(files, current_stats, extended, seed=seed)
-            top["kept"] = True
-            extended = cause.apply(extended, top["params"])
-            current_stats = simulate_stats(extended)
-            done.append(top)
-        else:
-            top["kept"] = False
-            unexplained.append({"statistic": top["statistic"], "candidate": cause.name, "score": top["score"],
-                                "evidence": top["evidence"] + "; the candidate's extension does not help on held-out files"})
-            done.append(dict(top, cause=UNEXPLAINED, candidate=cause.name, source=cause.name))
-    # a statistic without an extension is a finding only when significant (as `unexplained`)
-    known = dict(by_name, **{c.name: c for c in chart_causes})   # plots below: file causes only
-    findings = [f for f in done if f["cause"] == UNEXPLAINED or known[f["cause"]].extensible]
+        finding = cause.test(files, audit.current_stats, audit.extended, n_permutations=n_permutations,
+                             seed=audit.seed)
+        finding["significant"] = cause.is_significant(finding, audit.threshold)
+        finding["tolerance"] = cause.tolerance
+        finding["params"], finding["gain"] = {}, None
+        out.append(finding)
+    return sorted(out, key=rank)
+
+
+def start_explaining(audit: Audit, chart_report, simulated_stats) -> None:
+    """The state explaining away starts from: the profile (extended by the charts' findings
+    when there are any: the sensor causes are then tested against it) and all file causes."""
+    audit.extended, audit.current_stats = audit.profile, simulated_stats
+    if chart_report is not None:   # colour first
+        audit.extended, audit.unexplained, audit.done = (chart_report["profile"], chart_report["unexplained"],
+                                                         chart_report["findings"])
+        if audit.extended is not audit.profile:
+            audit.current_stats = simulate_stats(audit, audit.extended)
+    audit.remaining = list(audit.registry)
+
+
+def explain_next(audit: Audit, *, folds: int, n_permutations: int) -> bool:
+    """One round of explaining away: test the remaining causes, take the strongest significant
+    difference, validate its extension on held-out files, and if kept re-simulate with it (a
+    difference that another cause's extension reproduces is not a finding of its own). A noise
+    or exposure difference is first weighed against a black pedestal (`scene_pedestal`).
+    Returns False when nothing significant is left."""
+    results = test_all(audit, audit.remaining, n_permutations)
+    if not results:
+        return False
+    top = results[0]
+    if not top["significant"]:
+        audit.done.extend(results)
+        return False
+    cause = next(c for c in audit.remaining if c.name == top["cause"])
+    audit.remaining.remove(cause)
+    if not cause.extensible:
+        audit.unexplained.append({"statistic": top["statistic"], "candidate": None, "score": top["score"],
+                                  "evidence": top["evidence"]})
+        audit.done.append(dict(top, cause=UNEXPLAINED, kept=False, source=cause.name))
+        return True
+    audit.say(f"cross-validating the {cause.name} extension")
+    files = evidence_of(audit, cause)
+    top["gain"] = gain.cross_validate(cause, files, audit.current_stats, audit.extended,
+                                      functools.partial(simulate_stats, audit), folds=min(folds, len(files)),
+                                      seed=audit.seed)
+    rival = pedestal_rival(audit, cause, top, files, folds)
+    if rival is not None and rival["verdict"] == "black_level":
+        keep_pedestal(audit, cause, top, rival)
+    elif rival is not None:
+        record_undecided(audit, cause, top, rival)
+    else:
+        keep_or_refuse(audit, cause, top, files)
+    return True
+
+
+def pedestal_rival(audit: Audit, cause, top, files, folds: int):
+    """`scene_pedestal.weigh` for a noise or exposure finding of a set without black-level
+    evidence while black_level is still to be tested; None otherwise, and None when the scenes'
+    darkest values or the low end of the noise curve rule the pedestal out (the words go to
+    `top["pedestal_ruled_out"]`: the finding stands)."""
+    if cause.name not in PEDESTAL_RIVALS or audit.black_files or "black_level" not in {c.name for c in audit.remaining}:
+        return None
+    rival = scene_pedestal.weigh(top, files, audit.current_stats, audit.extended, folds=folds, seed=audit.seed)
+    if rival is not None and rival["verdict"] == "ruled_out":
+        audit.say(f"a black pedestal does not explain the {cause.name} difference: {rival['evidence']}")
+        top["pedestal_ruled_out"] = rival["evidence"]
+        return None
+    return rival
+
+
+def keep_pedestal(audit: Audit, cause, top, rival) -> None:
+    """A pedestal explains the difference better: keep it, measure the files from it, test the
+    rest again (`cause` goes back to the causes still to test)."""
+    audit.say(f"a black pedestal of {rival['pedestal_dn']:.1f} DN explains the {cause.name} difference better")
+    black = audit.by_name["black_level"]
+    audit.remaining.remove(black)
+    audit.remaining.append(cause)
+    audit.done.append(pedestal_finding(black, top, rival, audit.extended))
+    audit.extended = black.apply(audit.extended, audit.done[-1]["params"])
+    measure_again(audit, np.full(4, rival["pedestal_dn"]))
+    audit.current_stats = simulate_stats(audit, audit.extended)
+
+
+def record_undecided(audit: Audit, cause, top, rival) -> None:
+    """The data cannot tell a black pedestal (`rival`) from `cause`: name neither, say what would decide."""
+    decide = scene_pedestal.DECIDES
+    audit.say(f"the {cause.name} difference could as well be a black pedestal: not fitted")
+    words = f"{top['evidence']}; or {rival['evidence']}: the two cannot be told apart, {decide}"
+    audit.unexplained.append({"statistic": top["statistic"], "candidate": cause.name, "alternative": "black_level",
+                              "score": top["score"], "evidence": words, "decide_with": decide})
+    audit.done.append(dict(top, cause=UNEXPLAINED, candidate=cause.name, source=cause.name, kept=False,
+                           alternative="black_level", decide_with=decide, evidence=words, pedestal=rival))
+
+
+def keep_or_refuse(audit: Audit, cause, top, files) -> None:
+    """Keep `cause`'s extension when it lowered the held-out discrepancy (re-simulating with it),
+    else record the difference as unexplained."""
+    if top["gain"]["after"] < top["gain"]["before"]:
+        top["params"] = cause.fit(files, audit.current_stats, audit.extended, seed=audit.seed)
+        top["kept"] = True
+        audit.extended = cause.apply(audit.extended, top["params"])
+        audit.current_stats = simulate_stats(audit, audit.extended)
+        audit.done.append(top)
+        return
+    top["kept"] = False
+    audit.unexplained.append({"statistic": top["statistic"], "candidate": cause.name, "score": top["score"],
+                              "evidence": top["evidence"] + "; the candidate's extension does not help on held-out files"})
+    audit.done.append(dict(top, cause=UNEXPLAINED, candidate=cause.name, source=cause.name))
+
+
+# ----------------------------------------------------------------------------- the report
+
+def final_findings(audit: Audit, chart_causes, simulated_stats) -> list:
+    """The findings in rank order, each significant one with the plot that makes its case (for
+    the HTML report); a statistic without an extension is a finding only when significant (as
+    `unexplained`)."""
+    known = dict(audit.by_name, **{c.name: c for c in chart_causes})   # plots below: file causes only
+    findings = [f for f in audit.done if f["cause"] == UNEXPLAINED or known[f["cause"]].extensible]
     findings.sort(key=rank)
-    for f in findings:   # the plot that makes the case, for the HTML report
-        cause = by_name.get(f.get("source", f["cause"]))
+    for f in findings:
+        cause = audit.by_name.get(f.get("source", f["cause"]))
         if f["significant"] and cause is not None:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
-                f["plot"] = cause.plot(evidence_of(cause), simulated_stats, profile, extended if f.get("kept") else None)
-    timing["total_s"] = time.perf_counter() - started
+                f["plot"] = cause.plot(evidence_of(audit, cause), simulated_stats, audit.profile,
+                                       audit.extended if f.get("kept") else None)
+    return findings
+
+
+def assemble_report(audit: Audit, findings, chart_report, sizes, *, alpha, tests, timing) -> dict:
+    """The report dict (REPORT.json's content, and the extended profile under "profile")."""
+    measured_stats, units = audit.measured_stats, audit.units
+    shapes = [f["shape"] for f in (units or measured_stats)]
     return {
-        "findings": findings, "unexplained": unexplained,
-        "vocabulary": list(CAUSES), "alpha": alpha, "tests": tests, "threshold_p": threshold, "score_cap": SCORE_CAP,
-        "n_measured": len(items), "n_simulated": n_sim, "seed": seed,
-        "profile_name": str(getattr(profile.info, "name", "") or ""),
+        "findings": findings, "unexplained": audit.unexplained,
+        "vocabulary": list(CAUSES), "alpha": alpha, "tests": tests, "threshold_p": audit.threshold,
+        "score_cap": SCORE_CAP, "n_measured": len(measured_stats), "n_simulated": sum(count for _, count in sizes),
+        "seed": audit.seed, "profile_name": str(getattr(audit.profile.info, "name", "") or ""),
         "measured_files": [Path(str(f.get("name") or "")).name for f in measured_stats],
         "n_dark_frames": sum(bool(f.get("dark_frame")) for f in measured_stats),
-        "bursts": [[measured_stats[i]["name"] for i in group] for group in groups],
-        "n_independent": len(units), "lens_shading_simulated": bool(with_lens),
+        "bursts": [[measured_stats[i]["name"] for i in group] for group in audit.groups],
+        "n_independent": len(units), "lens_shading_simulated": bool(audit.with_lens),
         **({"n_charts": chart_report["n_charts"], "charts": chart_report["charts"]} if chart_report else {}),
         "size": [int(v) for v in shapes[0]], "sizes": sorted({tuple(int(v) for v in s) for s in shapes}),
         "simulated_size": list(sizes[0][0]), "simulated_sizes": [[h, w, count] for (h, w), count in sizes],
-        "timing": timing, "profile": extended,
+        "timing": timing, "profile": audit.extended,
     }
 
 
