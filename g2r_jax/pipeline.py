@@ -14,6 +14,7 @@ the input colours (up to one global exposure scale).
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 
@@ -64,7 +65,7 @@ COLOUR_STAGES = {"matrix": (matrix_conditions, matrix_mosaic)}
 
 def colour_stage(colour: str):
     """(conditions, mosaic) functions of a colour model: 'matrix' (the DNG matrices, default),
-    'spectral' or 'spectral-jakob2019' (`g2r_jax.spectral.stage`, siblings with the same shape)."""
+    'spectral' or 'spectral-jakob2019' (`g2r_jax.colour.spectral.stage`, siblings with the same shape)."""
     if colour in COLOUR_STAGES:
         return COLOUR_STAGES[colour]
     from g2r_jax.colour.spectral.stage import STAGES
@@ -92,6 +93,9 @@ def sample_conditions(key, profile, *, neutral=None, iso=None, exposure_gain=Non
 
     # 2. Sample an illuminant from the camera's distribution: a camera neutral (r/g, 1, b/g).
     if neutral is None:
+        if profile.illuminants is None:
+            raise ValueError(f"profile {profile.info.name!r} has no illuminant model (`without_illuminants`): "
+                             "give the lights as `neutral`")
         neutral = _illuminants.chromaticity_to_neutral(
             _illuminants.sample_chromaticity(k_illuminant, profile.illuminants))
     neutral = jnp.asarray(neutral, dtype)
@@ -138,27 +142,27 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
                                      resolve_highlight_safe(highlight_safe, recipe))
     mosaic = mosaic * conditions["exposure_gain"]
 
-    # 6. Optics and sensor: shading and channel gains, noise at the drawn ISO, readout effects.
+    # 6. Optics: shading and channel gains (and the renderer's lens-shading gain taken out).
     if effects:
         mosaic = _sensor.apply_optical_effects(mosaic, profile.effects, valid_shape=valid_shape)
     if lens_gain is not None:
         mosaic = mosaic / _sensor.from_planes(lens_gain)
     signal = mosaic
-    if noise:
-        mosaic = _sensor.add_noise(conditions["noise_key"], mosaic, conditions["noise_shot"], conditions["noise_read"],
-                                   level_knots=profile.noise.level_knots, level_variance=conditions.get("noise_level"),
-                                   correlation_kernel=profile.noise.correlation_kernel, valid_shape=valid_shape,
-                                   correlation_levels=(profile.noise.correlation_knots, profile.noise.correlation_weight))
-    effect_parameters = profile.effects if effects else _sensor.no_effects()
-    if effects:
-        mosaic = _sensor.apply_readout_effects(conditions["readout_key"], mosaic, profile.effects)
+    noise_at = None if not noise else _sensor.ReadoutNoise(
+        shot=conditions["noise_shot"], read=conditions["noise_read"], level_knots=profile.noise.level_knots,
+        level_variance=conditions.get("noise_level"), correlation_kernel=profile.noise.correlation_kernel,
+        correlation_knots=profile.noise.correlation_knots, correlation_weight=profile.noise.correlation_weight)
 
-    # 7. Black and white levels, quantisation.
-    levels = lambda m: _sensor.to_digital_numbers(m, profile.black_level, profile.white_level, effect_parameters,
-                                                  quantize=quantize)
+    # 6-7. Readout: noise at the drawn ISO, banding, early saturation; black and white levels,
+    #      quantisation.
+    keys = jnp.stack([conditions["noise_key"], conditions["readout_key"]])
+    mosaic = _sensor.readout(keys, signal, profile.black_level, profile.white_level, noise=noise_at,
+                             effects=profile.effects if effects else None, quantize=quantize, valid_shape=valid_shape)
     if not return_clean:
-        return levels(mosaic)
-    return levels(mosaic), levels(jnp.minimum(signal, profile.effects.clip_level) if effects else signal)
+        return mosaic
+    clean = jnp.minimum(signal, profile.effects.clip_level) if effects else signal
+    return mosaic, _sensor.to_digital_numbers(clean, profile.black_level, profile.white_level,
+                                              profile.effects if effects else _sensor.no_effects(), quantize=quantize)
 
 
 def content_stage(linear, profile, content: bool | None):
@@ -172,6 +176,14 @@ def content_stage(linear, profile, content: bool | None):
     if model is None or content is False or (content is None and not model.apply_by_default):
         return linear
     return _content.apply(model, linear)
+
+
+def without_illuminants(profile):
+    """`profile` with no illuminant model (None), for conversions that are given their lights
+    (`neutral=` of `unprocess` / `unprocess_batch`, e.g. a training set's or a control's fixed
+    neutrals): nothing else in the pipeline reads the model, and a program compiled for such a
+    profile serves every camera, whatever the size of its illuminant model's arrays."""
+    return eqx.tree_at(lambda p: p.illuminants, profile, None, is_leaf=lambda x: x is None)
 
 
 def _check_image(image, ndim: int = 3):
@@ -191,7 +203,8 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     - `image`: (H, W, 3), H and W even; uint8 codes or float values in [0, 1] (linear for EXR).
     - `profile`: a `SensorProfile`.
     - `transfer`: 'srgb' (exact IEC 61966-2-1 curve), 'gamma2.2' (the published choice) or 'linear'.
-    - `neutral`: (3,) camera neutral to use instead of sampling one (G = 1).
+    - `neutral`: (3,) camera neutral to use instead of sampling one (G = 1); the profile's
+      illuminant model is then not read (it may be None: `without_illuminants`).
     - `iso`, `exposure_gain`: fix these instead of sampling them.
     - `noise`, `effects`: add the profile's noise / non-ideal sensor effects.
     - `highlight_safe`: ease un-white-balance gains to 1 for near-white pixels (Brooks et al.
@@ -203,10 +216,10 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     - `colour`: 'matrix' (the DNG matrices of the profile), 'spectral' (the profile's spectral
       sensitivities, the neutral as a light spectrum, sRGB upsampled to reflectance by three
       basis spectra: one 3x3 per image) or 'spectral-jakob2019' (Jakob-Hanika upsampling);
-      see `g2r_jax.spectral`. Spectral metadata adds `illuminant_family`, `illuminant_spectrum`.
+      see `g2r_jax.colour.spectral`. Spectral metadata adds `illuminant_family`, `illuminant_spectrum`.
     - `quantize`: return uint16 DN (True) or unrounded float32 DN (False).
     - `lens_gain`: optional (4, H/2, W/2) gain a DNG renderer applies from the camera's
-      lens-shading opcodes (`g2r_jax.lens_shading.shading_gain_planes`); the raw is divided by
+      lens-shading opcodes (`g2r_jax.sensor.shading.shading_gain_planes`); the raw is divided by
       it, so that a renderer applying the opcode gets the scene back.
     - `content`: apply the profile's content model (`g2r_jax.content`) to the scene-linear image
       first: True, False, or None (default) as the profile's model says (`apply_by_default`).
@@ -236,6 +249,9 @@ def unprocess_batch(keys, images, profile, *, neutral=None, iso=None, exposure_g
                     recipe: str = "dng", colour: str = "matrix", valid_shapes=None, **render_options):
     """`unprocess` over a batch (B, H, W, 3) with keys (B, ...), same results image by image
     whatever the batch size or an image's place in it.
+
+    `neutral` (B, 3) fixes every image's light; the profile may then have no illuminant model
+    (`without_illuminants(profile)`: one compiled program for every camera's fixed lights).
 
     The per-image conditions (illuminant, white point, 3x3 matrices) come from
     `batch_conditions` (chunks of a fixed size, so bytes do not depend on how files were batched

@@ -85,3 +85,18 @@ def test_transfers_and_uint8_lookup_agree_with_float_decoding():
 def test_odd_sizes_are_refused():
     with pytest.raises(ValueError, match="even"):
         unprocess(jax.random.PRNGKey(0), jnp.zeros((3, 4, 3)), pm.load_profile("Canon600D"))
+
+
+def test_fixed_neutrals_need_no_illuminant_model():
+    from g2r_jax.pipeline import unprocess_batch, without_illuminants
+
+    profile = pm.load_profile("Canon600D")
+    images = jnp.asarray(np.random.default_rng(1).integers(0, 256, (2, 8, 10, 3)), jnp.uint8)
+    keys = jax.random.split(jax.random.PRNGKey(2), 2)
+    neutrals = jnp.array([[0.5, 1.0, 0.6], [0.7, 1.0, 0.4]])
+    full, full_meta = unprocess_batch(keys, images, profile, neutral=neutrals)
+    bare, bare_meta = unprocess_batch(keys, images, without_illuminants(profile), neutral=neutrals)
+    np.testing.assert_array_equal(np.asarray(bare), np.asarray(full))
+    np.testing.assert_array_equal(np.asarray(bare_meta["neutral"]), np.asarray(full_meta["neutral"]))
+    with pytest.raises(ValueError, match="no illuminant model"):
+        unprocess(keys[0], images[0], without_illuminants(profile))

@@ -122,14 +122,6 @@ def _padded_model(model):
                        tuple(device_array(a, a.dtype) for a in padded))
 
 
-def _without_illuminants(profile):
-    from g2r_jax.illuminants.distributions import fit_gaussian
-    from g2r_jax.profile.schema import replace
-
-    placeholder = fit_gaussian(np.array([[0.5, 0.5], [0.6, 0.5], [0.5, 0.6]]), use_hull=False)
-    return replace(profile, illuminants=placeholder)
-
-
 @eqx.filter_jit
 def _g2r_thumbnails(keys, images, neutrals, profile, recipe, highlight_safe):
     from g2r_jax.pipeline import unprocess_batch
@@ -163,7 +155,9 @@ def g2r_set(views_linear: np.ndarray, profile, seed: int, *, neutrals=None, reci
     neutrals = np.asarray(neutrals, np.float32)
     neutrals = neutrals / neutrals[:, 1:2]
     # The lights are drawn above: one compiled program serves every illuminant model.
-    profile = _without_illuminants(profile)
+    from g2r_jax.pipeline import without_illuminants
+
+    profile = without_illuminants(profile)
     keys = np.asarray(jax.random.split(key_images, n))
     thumbs, lights = [], []
     for start, stop in _batches(n):
