@@ -30,8 +30,8 @@ trained); one in `FULL_EVERY` runs the whole check with the cheapest settings (m
 - `report_problems`: a report folder left by a refused or dry run, a missing report after a full
   run, or a temporary file left.
 
-Run: `nice -n 5 python benchmarks/fuzz_downstream.py N [SEED] [--log FILE]`; prints one JSON line
-of counts (docs/pages/validation/reliability.md).
+Run: `nice -n 5 python benchmarks/fuzz_downstream.py N [SEED] [--log FILE] [--first K]`; prints one
+JSON line of counts (docs/pages/validation/reliability.md).
 """
 
 from __future__ import annotations
@@ -57,7 +57,8 @@ from fuzz_harness import _digest, _line_problems, _tag_fields, mutate_dng, mutat
 COMMAND = "g2r-downstream"
 KINDS = {"dng": 20, "cg": 14, "burst": 20, "duplicate": 6, "calibration": 6, "constant": 4, "args": 30}
 FULL_EVERY = 250
-CASE_SECONDS = 240
+CASE_SECONDS = 120               # a dry run; a full one (tiny training) takes minutes on a loaded machine
+FULL_SECONDS = 1200
 GOOD_MEASURED = 13
 COUNTS = ("silently_accepted_corrupt", "duplicate_leaks", "whole_run_aborts", "unnamed_refusals", "tracebacks",
           "hangs", "inputs_modified", "report_problems")
@@ -65,32 +66,35 @@ CHEAP = ["--estimators", "moments", "--seeds", "1", "--n", "50", "--folds", "2",
 
 
 def make_seeds(folder: Path) -> dict:
-    """The seed files in `folder`: measured DNGs, CG images, burst frames."""
+    """The seed files in `folder` (made once, reused when `folder` holds them): measured DNGs, CG
+    images, burst frames, and what the checks compare with (the original pixels)."""
     from PIL import Image
 
     import g2r_jax
     from g2r_jax.audit import scenes, simulate
     from g2r_jax.downstream.bursts import write_synthetic_burst
+    from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels
     from g2r_jax.io.dng_write import write_dng
 
-    profile = g2r_jax.load_profile("NikonD40")
     measured, cg, burst = folder / "measured", folder / "cg", folder / "burst"
-    for sub in (measured, cg, burst):
-        sub.mkdir(parents=True)
-    files = simulate.simulate(profile, scenes.scene_set(GOOD_MEASURED + 1, 3, 128, 160), 1)
-    for i, (mosaic, info) in enumerate(files):
-        write_dng(measured / f"real_{i:02d}.dng", mosaic, info)
-    for i, scene in enumerate(scenes.scene_set(4, 9, 136, 176)):
-        pixels = (np.clip(scene, 0, 1) * 255).round().astype(np.uint8) if scene.dtype != np.uint8 else scene
-        Image.fromarray(pixels).save(cg / (f"render_{i}.png" if i < 3 else f"render_{i}.jpg"))
-    write_synthetic_burst(burst, profile, n_frames=4, height=128, width=160)
-    from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels
-
-    dngs = sorted(measured.glob("*.dng"))
-    frames = sorted(burst.glob("*.dng"))
-    return {"burst_mosaics": {p: read_dng_pixels(p, read_dng_info(p)) for p in frames},"measured": dngs, "infos": [info for _, info in files], "mosaics": [m for m, _ in files],
-            "cg": sorted(cg.iterdir()), "burst": sorted(burst.glob("*.dng")),
-            "fields": {p: _tag_fields(p.read_bytes()) for p in dngs + sorted(burst.glob("*.dng"))}}
+    if not (folder / "done").exists():
+        profile = g2r_jax.load_profile("NikonD40")
+        for sub in (measured, cg, burst):
+            sub.mkdir(parents=True, exist_ok=True)
+        files = simulate.simulate(profile, scenes.scene_set(GOOD_MEASURED + 1, 3, 128, 160), 1)
+        for i, (mosaic, info) in enumerate(files):
+            write_dng(measured / f"real_{i:02d}.dng", mosaic, info)
+        for i, scene in enumerate(scenes.scene_set(4, 9, 136, 176)):
+            pixels = (np.clip(scene, 0, 1) * 255).round().astype(np.uint8) if scene.dtype != np.uint8 else scene
+            Image.fromarray(pixels).save(cg / (f"render_{i}.png" if i < 3 else f"render_{i}.jpg"))
+        write_synthetic_burst(burst, profile, n_frames=4, height=128, width=160)
+        (folder / "done").write_text("")
+    dngs, frames = sorted(measured.glob("*.dng")), sorted(burst.glob("*.dng"))
+    infos = [read_dng_info(p) for p in dngs]
+    return {"measured": dngs, "infos": infos, "mosaics": [read_dng_pixels(p, i) for p, i in zip(dngs, infos)],
+            "burst_mosaics": {p: read_dng_pixels(p, read_dng_info(p)) for p in frames},
+            "cg": sorted(cg.iterdir()), "burst": frames,
+            "fields": {p: _tag_fields(p.read_bytes()) for p in dngs + frames}}
 
 
 @dataclasses.dataclass
@@ -183,7 +187,9 @@ def _odd_file_case(rng, work, seeds, kind) -> Case:
         mosaic = np.full_like(mosaic, rng.choice((0, 1, 600, int(info.white_level), 65535)))
         how = f"every pixel {mosaic.flat[0]}"
     elif rng.random() < 0.5:
-        other = tuple(rng.sample((17, 19, 20, 21, 23, 10, 11), 2))
+        other = tuple(info.calibration_illuminants)
+        while sorted(other) == sorted(info.calibration_illuminants):
+            other = tuple(rng.sample((17, 19, 20, 21, 23, 10, 11), 2))
         info = dataclasses.replace(info, calibration_illuminants=other)
         how = f"calibration illuminants {other}"
     else:
@@ -299,15 +305,18 @@ def check(case: Case, status, err: str, work: Path, before: dict) -> dict:
     return found
 
 
-def campaign(n: int, seed: int = 0, log=print, full_every: int = FULL_EVERY) -> dict:
-    """Run `n` cases drawn from `seed`; returns the counts, outcomes and findings."""
+def campaign(n: int, seed: int = 0, log=print, full_every: int = FULL_EVERY, seeds_dir: Path | None = None,
+             first: int = 0, stop_after: float = float("inf")) -> dict:
+    """Run cases `first`..`n`-1 drawn from `seed` (the earlier ones are drawn, not run: a campaign
+    runs in pieces), starting none after `stop_after` seconds; returns the counts, outcomes and
+    findings (`cases`: how many ran)."""
     from g2r_jax.cli.downstream import main
 
     base = Path(tempfile.mkdtemp(prefix="g2r_fuzz_downstream_"))
     totals = {name: 0 for name in COUNTS}
-    outcomes, findings, started = {}, [], time.time()
+    outcomes, findings, started, ran = {}, [], time.time(), 0
     try:
-        seeds = make_seeds(base / "seeds")
+        seeds = make_seeds(seeds_dir or base / "seeds")
         rng = random.Random(seed)
         kinds = [k for k, w in KINDS.items() for _ in range(w)]
         for index in range(n):
@@ -315,7 +324,14 @@ def campaign(n: int, seed: int = 0, log=print, full_every: int = FULL_EVERY) -> 
             work = base / f"case{index}"
             work.mkdir()
             case = make_case(kind, rng, work, seeds)
-            full = index % full_every == full_every - 1 and kind != "args"
+            if index < first or time.time() - started > stop_after:
+                shutil.rmtree(work, ignore_errors=True)
+                if index < first:
+                    continue
+                break
+            ran += 1
+            full = (index - first) % full_every == 0 and kind != "args"
+            fuzz_harness.CASE_SECONDS = FULL_SECONDS if full else CASE_SECONDS
             case.dry_run = not full
             argv = list(case.argv)
             if "--report" not in argv:
@@ -325,7 +341,9 @@ def campaign(n: int, seed: int = 0, log=print, full_every: int = FULL_EVERY) -> 
                 argv += ["--profile", "NikonD40"]
             case.argv = argv
             before = {str(p): _digest(p) for p in case.inputs if p.exists()}
+            began = time.time()
             status, _, err = run_main(main, argv)
+            seconds = time.time() - began
             found = check(case, status, err, work, before)
             outcomes[f"{kind} exit {status if isinstance(status, int) else 'none'}"] = \
                 outcomes.get(f"{kind} exit {status if isinstance(status, int) else 'none'}", 0) + 1
@@ -336,11 +354,13 @@ def campaign(n: int, seed: int = 0, log=print, full_every: int = FULL_EVERY) -> 
                                      "detail": details[0][:300]})
                     log(f"finding in case {index} ({kind}: {case.label}): {name}: {details[0][:300]}")
             shutil.rmtree(work, ignore_errors=True)
+            log(f"case {index} {kind} exit {status if isinstance(status, int) else 'none'} {seconds:.1f} s"
+                f"{' full' if full else ''}: {case.label[:80]}")
             if (index + 1) % 50 == 0:
                 log(f"progress: {index + 1} cases, {time.time() - started:.0f} s, findings {sum(totals.values())}")
     finally:
         shutil.rmtree(base, ignore_errors=True)
-    return {"cases": n, "seed": seed, "seconds": round(time.time() - started), "counts": totals,
+    return {"cases": ran, "first": first, "last": first + ran - 1, "seed": seed, "seconds": round(time.time() - started), "counts": totals,
             "outcomes": dict(sorted(outcomes.items())), "findings": findings}
 
 
@@ -351,12 +371,16 @@ def main(argv=None) -> int:
     parser.add_argument("--log", type=Path, help="progress and findings go here (default: stderr)")
     parser.add_argument("--full-every", type=int, default=FULL_EVERY,
                         help="one case in this many runs the whole check (tiny training) instead of --dry-run")
+    parser.add_argument("--seeds-dir", type=Path, help="keep (or reuse) the seed files here")
+    parser.add_argument("--first", type=int, default=0, help="run cases FIRST..N-1 only")
+    parser.add_argument("--stop-after", type=float, default=float("inf"), metavar="SECONDS",
+                        help="start no case after this many seconds (the count run is reported)")
     args = parser.parse_args(argv)
-    fuzz_harness.CASE_SECONDS = CASE_SECONDS
     handle = open(args.log, "a") if args.log else sys.stderr
     try:
         result = campaign(args.n, args.seed, log=lambda line: print(line, file=handle, flush=True),
-                          full_every=args.full_every)
+                          full_every=args.full_every, seeds_dir=args.seeds_dir, first=args.first,
+                          stop_after=args.stop_after)
     finally:
         if args.log:
             handle.close()

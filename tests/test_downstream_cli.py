@@ -162,7 +162,8 @@ def test_duplicates_are_read_once_or_kept_in_one_fold_and_named(camera_folders, 
     (copies / "copy_of_07.dng").write_bytes((dngs / "real_07.dng").read_bytes())
     status, out, err = run(capsys, "--measured", copies, copies, "--cg", cg, "--report", tmp_path / "r", "--dry-run",
                            "--quiet")
-    assert status == 0 and "16 real DNG(s)" in out                  # the folder given twice: each file once
+    assert status == 1 and "16 real DNG(s)" in out                  # the folder given twice: each file once
+    assert err.count(": error: ") == 1 and "tiny.png" in err        # only the fixture's broken CG image left out
     assert "copy_of_03.dng" in err and "real_03.dng" in err and "one fold" in err
     from g2r_jax.downstream import read_inputs
     from g2r_jax.measure import folds_of
@@ -213,9 +214,9 @@ def test_a_file_with_other_calibration_tags_or_constant_pixels_is_left_out_by_na
     folder = _copy_folder(dngs, tmp_path / "mixed")
     info = read_dng_info(dngs / "real_00.dng")
     mosaic = read_dng_pixels(dngs / "real_00.dng", info)
-    other = tuple(reversed(info.calibration_illuminants)) if len(set(info.calibration_illuminants)) > 1 else (17, 21)
-    _write(folder, "zz_other_calibration.dng", mosaic[::-1].copy(),
-           dataclasses.replace(info, calibration_illuminants=(23, 10) if other == info.calibration_illuminants else other))
+    other = (23, 10) if sorted(info.calibration_illuminants) != [10, 23] else (17, 21)
+    _write(folder, "zz_other_calibration.dng", np.roll(mosaic, 2, axis=1),   # another scene, same CFA phase
+           dataclasses.replace(info, calibration_illuminants=other))
     _write(folder, "zz_constant.dng", np.full_like(mosaic, 700), info)
     status, out, err = run(capsys, "--measured", folder, "--cg", cg, "--report", tmp_path / "r", "--dry-run",
                            "--profile", "NikonD40", "--quiet")
