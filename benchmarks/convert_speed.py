@@ -112,6 +112,7 @@ def _floor(files, profile, out: Path, workers: int, compression: str):
     """Decode `files` on `workers` threads, then write as many DNGs on `workers` threads:
     (decode wall, decode CPU, write wall, write CPU)."""
     from g2r_jax.batch import conversion
+    from g2r_jax.profile import dng_tags
     from g2r_jax.io.atomic import atomic_write_bytes
     from g2r_jax.io.dng_write import write_dng_bytes
 
@@ -124,7 +125,7 @@ def _floor(files, profile, out: Path, workers: int, compression: str):
                      profile.white_level).astype(np.uint16)
     metadata = {"noise_shot": np.full(4, 1e-4), "noise_read": np.full(4, 1e-7),
                 "neutral": np.array([0.5, 1.0, 0.6]), "iso": 100.0}
-    info = conversion.dng_info_for(profile, metadata, height, width, noise=True)
+    info = dng_tags.dng_info_for(profile, metadata, height, width, noise=True)
 
     def write(i):
         atomic_write_bytes(out / f"floor{i}.dng", write_dng_bytes(mosaic, info, compression=compression))

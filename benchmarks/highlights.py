@@ -49,7 +49,7 @@ def neutral_for(profile, cct: float) -> np.ndarray:
 
 
 def write_ramp_dng(path: Path, profile, neutral, gain: float, highlight_safe) -> None:
-    from g2r_jax.batch.conversion import dng_info_for
+    from g2r_jax.profile.dng_tags import dng_info_for
     from g2r_jax.io.dng_write import write_dng
     from g2r_jax.pipeline import unprocess
 

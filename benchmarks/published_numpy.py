@@ -118,7 +118,7 @@ def convert_folder(inputs, profile, out_dir, seed: int = 0) -> int:
     """One image after the other: decode, sample, the published steps, write a DNG."""
     from PIL import Image
 
-    from g2r_jax.batch.conversion import dng_info_for
+    from g2r_jax.profile.dng_tags import dng_info_for
     from g2r_jax.io.dng_write import write_dng_bytes
 
     out_dir = Path(out_dir)

@@ -12,7 +12,7 @@ import pytest
 from g2r_jax.profile import fitting as fit
 from g2r_jax.sensor.noise import extension as noise_extension, fallback as noise_fallback
 from g2r_jax.audit import scenes, synthetic
-from g2r_jax.batch.conversion import dng_info_for
+from g2r_jax.profile.dng_tags import dng_info_for
 from g2r_jax.io.dng_read import read_dng_info
 from g2r_jax.io.dng_write import write_dng
 from g2r_jax.pipeline import unprocess

@@ -114,7 +114,7 @@ def test_flag_is_saved_loaded_and_checked(tmp_path):
 def test_converted_dng_states_the_noise_of_its_integers():
     """The NoiseProfile we write describes the file's integers: read + rounding. Fitting our own
     DNG gives back the profile's read term (the rounding is not taken out twice, nor kept)."""
-    from g2r_jax.batch.conversion import dng_info_for
+    from g2r_jax.profile.dng_tags import dng_info_for
 
     profile = fit_profile([sensor_info(np.array([[1e-4, 0.5 / SPAN**2]]), "a.dng")])
     meta = {"noise_shot": np.asarray(profile.noise.shot[0]), "noise_read": np.asarray(profile.noise.read[0]),

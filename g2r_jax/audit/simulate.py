@@ -54,7 +54,7 @@ def _lens_shading(profile, height: int, width: int):
     this size, as `g2r-convert` writes them (the raw carries the inverse of the gain)."""
     if "OpcodeList2" not in dict(profile.info.opcode_lists):
         return None, None
-    from g2r_jax.batch.conversion import lens_shading_for
+    from g2r_jax.profile.dng_tags import lens_shading_for
 
     gain, data = lens_shading_for(profile, height, width)
     return (jnp.asarray(gain), data) if data else (None, None)
