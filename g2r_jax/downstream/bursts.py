@@ -29,6 +29,10 @@ from g2r_jax.measure.bursts import scene_outliers
 from g2r_jax.measure.photon_transfer import regression_shot_read
 
 MIN_FRAMES = 3
+BLACK_FRAME_SHARE = 0.1     # a frame whose mean signal is under this share of the median frame's is black
+SATURATED = 0.98            # normalised level at which a pixel counts as clipped (as in photon transfer)
+MIN_UNCLIPPED_SHARE = 0.1   # a burst needs at least this share of pixels below SATURATED in every frame
+COPY = "the same pixels as"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -100,13 +104,59 @@ def _key_difference(key, reference) -> str:
     return "differs from the burst"
 
 
+def _where(source, paths) -> str:
+    """The folder to name in a refusal: `source` itself, or the folder of a list's files."""
+    if isinstance(source, (str, Path)):
+        return str(source)
+    folders = sorted({str(Path(p).parent) for p in paths})
+    return folders[0] if len(folders) == 1 else f"burst of {len(paths)} file(s) in {', '.join(folders)}"
+
+
+def _degenerate_frames(planes: np.ndarray, names) -> dict[int, str]:
+    """{frame index: reason} for frames that would corrupt the others' statistics: exact copies of
+    an earlier frame (same pixels, by `measure.pixel_hash`: no temporal noise between them) and
+    black frames (mean signal under BLACK_FRAME_SHARE of the median frame's: a capped lens or a
+    dark frame, which would pull the mean of the others down and reject every real frame)."""
+    from g2r_jax.measure import duplicate_groups
+
+    out: dict[int, str] = {}
+    if len(planes) == 0:
+        return out
+    groups = duplicate_groups(list(planes))
+    first = {}
+    for k, group in enumerate(groups):
+        if group in first:
+            out[k] = f"{COPY} {names[first[group]]}: a copy, not another exposure"
+        else:
+            first[group] = k
+    levels = planes.reshape(len(planes), -1).mean(1, dtype=np.float64)
+    typical = float(np.median(levels))
+    for k, level in enumerate(levels):
+        if k not in out and typical > 0 and level < BLACK_FRAME_SHARE * typical:
+            out[k] = (f"a black frame: its mean signal is {100 * level / typical:.1f} % of the median frame's "
+                      f"(a capped lens or a dark frame, not an exposure of the scene)")
+    return out
+
+
+def _refuse_saturated(planes: np.ndarray, where: str) -> None:
+    """DngError naming `where` when under MIN_UNCLIPPED_SHARE of the pixels stay below the white
+    level in every frame: such a burst has no noise to measure or learn from."""
+    unclipped = float(np.mean(planes.max(0) < SATURATED))
+    if unclipped < MIN_UNCLIPPED_SHARE:
+        raise DngError(where, f"{100 * (1 - unclipped):.1f} % of the burst's pixels reach the white level in some "
+                              f"frame (at most {100 * (1 - MIN_UNCLIPPED_SHARE):.0f} % may): a saturated burst "
+                              f"carries no noise to learn from; expose it shorter")
+
+
 def read_burst(source, *, min_frames: int = MIN_FRAMES) -> Burst:
     """A `Burst` from a folder of DNGs or a list of DNG paths (see the module docstring).
 
     Files that cannot be read, that differ from the most common size / CFA / levels / ISO /
-    camera of the others, or whose scene differs from the others' (`g2r_jax.measure.bursts.scene_outliers`) are named
-    in `skipped` with the reason. Raises `DngError` naming `source` (and every skipped file)
-    when fewer than `min_frames` (at least 3) frames remain.
+    camera of the others, copies of another frame, black frames (`_degenerate_frames`), or whose
+    scene differs from the others' (`g2r_jax.measure.bursts.scene_outliers`) are named in
+    `skipped` with the reason. Raises `DngError` naming `source` (and every skipped file) when
+    fewer than `min_frames` (at least 3) frames remain, or when the burst is saturated
+    (`_refuse_saturated`).
     """
     from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels, require_bayer_cfa
     from g2r_jax.sensor.noise.estimation import to_normalised_planes
@@ -136,16 +186,24 @@ def read_burst(source, *, min_frames: int = MIN_FRAMES) -> Burst:
                 skipped.append((item[0].name, _key_difference(key, reference)))
     planes = np.stack([to_normalised_planes(m, info.black_level, info.white_level).astype(np.float32)
                        for _, info, m in frames]) if frames else np.zeros((0, 4, 1, 1), np.float32)
+    where = _where(source, paths)
+    if frames:
+        _refuse_saturated(planes, where)
+    degenerate = _degenerate_frames(planes, [p.name for p, _, _ in frames])
+    skipped += [(frames[k][0].name, reason) for k, reason in sorted(degenerate.items())]
+    keep = [k for k in range(len(frames)) if k not in degenerate]
+    frames, planes = [frames[k] for k in keep], planes[keep]
     if len(frames) >= MIN_FRAMES:
         outliers = scene_outliers(planes)
         skipped += [(frames[k][0].name, reason) for k, reason in sorted(outliers.items())]
         keep = [k for k in range(len(frames)) if k not in outliers]
         frames, planes = [frames[k] for k in keep], planes[keep]
-    where = source if isinstance(source, (str, Path)) else f"burst of {len(paths) + len(skipped)} file(s)"
     if len(frames) < min_frames:
         listing = "; ".join(f"{name}: {reason}" for name, reason in skipped) or "none skipped"
-        raise DngError(where, f"a burst needs at least {min_frames} DNG frames of one static scene from one camera, "
-                              f"{len(frames)} usable (skipped: {listing})")
+        copies = " no temporal noise between identical frames;" if any(
+            reason.startswith(COPY) for _, reason in skipped) else ""
+        raise DngError(where, f"a burst needs at least {min_frames} DNG frames of one static scene from one camera,"
+                              f"{copies} {len(frames)} usable (skipped: {listing})")
     info = frames[0][1]
     return Burst(planes=planes, names=tuple(p.name for p, _, _ in frames), paths=tuple(p for p, _, _ in frames),
                  infos=tuple(i for _, i, _ in frames), black=np.resize(np.asarray(info.black_level, np.float64), 4),
@@ -170,7 +228,7 @@ def photon_transfer_noise(burst: Burst, frames=None) -> tuple[np.ndarray, np.nda
 
 def write_synthetic_burst(folder, profile, *, n_frames: int = 8, height: int = 192, width: int = 256,
                           iso: float = 1600.0, seed: int = 0, noise_scale: float = 1.0, low: float = 0.004,
-                          high: float = 0.08, fine: bool = True):
+                          high: float = 0.08, fine: bool = True, blur: float = 0.0):
     """Write `n_frames` DNGs (frame_000.dng, ...) of one static dead-leaves scene into `folder`
     with the profile's levels, CFA and colour tags, and no NoiseProfile tag; return (paths,
     truth) with truth a `g2r_jax.audit.synthetic_bursts.BurstTruth`.
@@ -178,10 +236,11 @@ def write_synthetic_burst(folder, profile, *, n_frames: int = 8, height: int = 1
     The frames' noise is the profile's noise at `iso` (the mean of its four tile positions,
     `noise_scale` times the variance): DN = round(black + span * (x + n)), n ~ N(0, shot x +
     read), written in numpy independently of the simulation (`synthetic_bursts.burst`). The
-    scene spans [`low`, `high`] of the range (a dim scene, where denoising matters)."""
+    scene spans [`low`, `high`] of the range (a dim scene, where denoising matters); `blur` > 0
+    defocuses it (a Gaussian of that sd in mosaic pixels per CFA site)."""
     from g2r_jax import sensor
     from g2r_jax.audit.synthetic_bursts import BurstTruth, burst, scene_signal
-    from g2r_jax.batch.conversion import dng_info_for
+    from g2r_jax.profile.dng_tags import dng_info_for
     from g2r_jax.io.dng_write import write_dng
 
     folder = Path(folder)
@@ -190,8 +249,14 @@ def write_synthetic_burst(folder, profile, *, n_frames: int = 8, height: int = 1
     black = np.asarray(profile.black_level, np.float64)
     truth = BurstTruth(black_tag=float(black.mean()), white=float(profile.white_level), shot=float(shot.mean()),
                        read=float(read.mean()), iso=float(iso))
-    frames = burst(truth, scene_signal(seed, height, width, low=low, high=high, fine=fine), n_frames, seed + 1,
-                   noise_scale=noise_scale)
+    signal = scene_signal(seed, height, width, low=low, high=high, fine=fine)
+    if blur > 0:   # defocus: each CFA site's plane blurred (Gaussian, `blur` mosaic pixels)
+        from scipy.ndimage import gaussian_filter
+
+        for dy in (0, 1):
+            for dx in (0, 1):
+                signal[dy::2, dx::2] = gaussian_filter(signal[dy::2, dx::2], blur / 2, mode="reflect")
+    frames = burst(truth, signal, n_frames, seed + 1, noise_scale=noise_scale)
     metadata = {"neutral": np.array([0.5, 1.0, 0.6]), "iso": iso, "noise_shot": shot, "noise_read": read}
     info = dng_info_for(profile, metadata, height, width, noise=False)
     info = dataclasses.replace(info, black_level=np.full(4, truth.black_tag))
