@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from g2r_jax.io.atomic import atomic_write_bytes
-from g2r_jax.audit import wording
+from g2r_jax.audit import content_report, wording
 from g2r_jax.audit.causes.base import position_labels
 
 
@@ -108,6 +108,7 @@ def summary(report: dict) -> str:
         lines.append(f"   ({wording.p_words(f['p'])}, score {f['score']:.1f}; details in the report)")
     if len(significant) > 1:
         lines.append(wording.RANKING.format(cap=report.get("score_cap", 40.0)))
+    lines += content_report.lines(report.get("content"))
     lines.append(f"time {report['timing']['total_s']:.1f} s")
     return "\n".join(lines)
 
@@ -293,6 +294,19 @@ def result_line(report: dict) -> str:
     return words + "."
 
 
+def _content_html(section) -> str:
+    """The scenes' content statistics, measured against simulated (no verdict), as a table."""
+    if not section:
+        return ""
+    fmt = lambda v: "-" if v is None else f"{v:.3g}"
+    rows = "".join(f"<tr><td>{html.escape(content_report.WORDS.get(n, n))}</td><td>{fmt(section['measured'][n])}</td>"
+                   f"<td>{fmt(section['simulated'][n])}</td></tr>" for n in section["names"])
+    return (f"<h2>Scene content (not the camera)</h2><p class='note'>Medians over {section['n_measured']} measured and "
+            f"{section['n_simulated']} simulated files, on 64 x 64 white-balanced camera-RGB thumbnails. What the "
+            f"scenes hold, not a property of the sensor: not tested, no verdict.</p><table><tr><th>statistic</th>"
+            f"<th>measured</th><th>simulated</th></tr>{rows}</table>")
+
+
 def write_html(report: dict, folder) -> Path | None:
     """report.html in `folder`: what was compared, the result in one sentence and where the
     outputs are; then one numbered section per significant finding (plain title, what differs,
@@ -360,5 +374,5 @@ def write_html(report: dict, folder) -> Path | None:
         f"</head><body><h1>g2r-diagnose report</h1>{head}<p class='summary'><b>Result:</b> {result_line(report)}</p>"
         f"{outputs}{ranking}{''.join(sections)}"
         f"<details><summary>All tests (details)</summary><table><tr><th>cause</th><th>significant</th><th>score</th><th>p</th><th>evidence</th></tr>"
-        f"{rows}</table></details><p class='note'>time {report['timing']['total_s']:.1f} s</p></body></html>\n").encode())
+        f"{rows}</table></details>{_content_html(report.get('content'))}<p class='note'>time {report['timing']['total_s']:.1f} s</p></body></html>\n").encode())
     return page

@@ -22,7 +22,8 @@ import numpy as np
 
 from g2r_jax.io.dng_info import DngError
 from g2r_jax.batch.conversion import file_key
-from g2r_jax.audit import black_evidence, bursts, evidence, gain, loading, scene_pedestal, simulate, stats
+from g2r_jax.audit import (black_evidence, bursts, content_report, evidence, gain, loading, scene_pedestal, simulate,
+                           stats)
 from g2r_jax.audit.causes import REGISTRY
 from g2r_jax.audit.scenes import scene_set
 from g2r_jax.audit.vocabulary import CAUSES, UNEXPLAINED
@@ -188,7 +189,8 @@ def diagnose(profile, measured=None, *, scenes=None, n_simulated: int | None = N
         pass
     findings = final_findings(audit, chart_causes, simulated_stats)
     timing["total_s"] = time.perf_counter() - started
-    return assemble_report(audit, findings, chart_report, sizes, alpha=alpha, tests=tests, timing=timing)
+    return assemble_report(audit, findings, chart_report, sizes, alpha=alpha, tests=tests, timing=timing,
+                           simulated_stats=simulated_stats)
 
 
 def _charts_only(chart_report, profile, alpha, tests, seed, started) -> dict:
@@ -215,6 +217,7 @@ def statistics_of(audit: Audit, index: int, item, pedestal_dn=None):
     found = stats.file_statistics(mosaic, info, profile, with_outliers=audit.with_outliers, seed=audit.seed + index,
                                   nlf_tiles=evidence.tiles_per_half(audit.n_items), pedestal_dn=pedestal_dn)
     found["item"] = index
+    found["content_thumbnail"] = content_report.thumbnail(mosaic, info)
     found["pedestal_dn"] = np.resize(np.asarray(profile.effects.black_pedestal if pedestal_dn is None
                                                 else pedestal_dn, np.float64), 4)   # the black it is measured from
     return found
@@ -307,6 +310,8 @@ def simulate_stats(audit: Audit, profile, cause: str = "all") -> list:
     with ThreadPoolExecutor(max(1, min(MEASURED_WORKERS, _cores()))) as pool:
         result = list(pool.map(lambda i: stats.file_statistics(*sim[i], profile, seed=seed + 7 * i,
                                                                with_outliers=outliers), range(len(sim))))
+    for f, (mosaic, info) in zip(result, sim):
+        f["content_thumbnail"] = content_report.thumbnail(mosaic, info)
     audit.simulated_sets[key] = (outliers, result)
     return result
 
@@ -458,8 +463,9 @@ def final_findings(audit: Audit, chart_causes, simulated_stats) -> list:
     return findings
 
 
-def assemble_report(audit: Audit, findings, chart_report, sizes, *, alpha, tests, timing) -> dict:
-    """The report dict (REPORT.json's content, and the extended profile under "profile")."""
+def assemble_report(audit: Audit, findings, chart_report, sizes, *, alpha, tests, timing, simulated_stats) -> dict:
+    """The report dict (REPORT.json's content, and the extended profile under "profile"); "content":
+    the scenes' content statistics, measured against simulated (`content_report`, no verdict)."""
     measured_stats, units = audit.measured_stats, audit.units
     shapes = [f["shape"] for f in (units or measured_stats)]
     return {
@@ -474,6 +480,7 @@ def assemble_report(audit: Audit, findings, chart_report, sizes, *, alpha, tests
         **({"n_charts": chart_report["n_charts"], "charts": chart_report["charts"]} if chart_report else {}),
         "size": [int(v) for v in shapes[0]], "sizes": sorted({tuple(int(v) for v in s) for s in shapes}),
         "simulated_size": list(sizes[0][0]), "simulated_sizes": [[h, w, count] for (h, w), count in sizes],
+        "content": content_report.compare(units, simulated_stats),
         "timing": timing, "profile": audit.extended,
     }
 
