@@ -48,8 +48,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--burst", metavar="DNG_DIR",
                         help="the denoising check: a folder of DNGs of one static scene (>= 3 frames); alone, "
                              "or with --measured and --cg")
-    parser.add_argument("--denoiser-steps", type=int, default=300, metavar="STEPS",
-                        help="Adam steps per denoiser training of the burst check")
+    parser.add_argument("--denoiser-steps", type=int, metavar="STEPS",
+                        help="Adam steps per denoiser training of the burst check (default: chosen on a validation "
+                             "split of the burst, where the real pairs' error stops improving, at most 3000)")
     parser.add_argument("--estimators", default=DEFAULT_ESTIMATORS,
                         help="comma-separated, of cnn, moments, histogram")
     parser.add_argument("--seeds", type=int, default=2, help="repetitions with new synthetic sets")
@@ -67,7 +68,7 @@ def _parser() -> argparse.ArgumentParser:
 def _range_problem(args) -> str | None:
     for name, (low, high) in LIMITS.items():
         value = getattr(args, name)
-        if not low <= value <= high:
+        if value is not None and not low <= value <= high:
             shown = str(value) if len(str(value)) <= 20 else f"{str(value)[:12]}... ({len(str(value))} digits)"
             return f"--{name.replace('_', '-')} {shown}: must be from {low} to {high}"
     if not 0 <= args.max_megapixels < float("inf"):

@@ -61,15 +61,17 @@ def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds,
 
 
 def _burst_check(inputs: Inputs, profile, *, seeds, steps, say) -> tuple:
-    """(DenoisingResult, JSON part, sentence, markdown lines) of the burst's denoising check."""
+    """(DenoisingResult, JSON part, sentence, markdown lines) of the burst's denoising check
+    (`denoising.run_burst_check`)."""
     from g2r_jax.downstream import denoising
 
     contents = ("cg", "scene") if inputs.cg_paths else ("scene",)
-    result = denoising.denoising_benchmark(inputs.burst, profile, inputs.cg_paths, contents=contents, seeds=seeds,
-                                           steps=steps, progress=say)
+    result = denoising.run_burst_check(inputs.burst, profile, inputs.cg_paths, contents=contents, seeds=seeds,
+                                       steps=steps, progress=say)
     document = {"psnr": {f"{r}/{c}": v for (r, c), v in result.psnr.items()}, "noisy_psnr": result.noisy_psnr,
-                "noise": result.noise, "frames": list(result.frames), "iso": result.iso}
-    return result, document, report.denoising_sentence(result), ["## Denoising on the burst", "", result.summary(), ""]
+                "peak": result.peak, "steps": result.steps, "step_curve": list(result.step_curve),
+                "cg_levels": result.cg_levels, "noise": result.noise, "frames": list(result.frames), "iso": result.iso}
+    return result, document, result.sentence(), ["## Denoising on the burst", "", result.summary(), ""]
 
 
 def _inputs_document(inputs: Inputs) -> dict:
@@ -82,7 +84,7 @@ def _inputs_document(inputs: Inputs) -> dict:
 
 def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile=None,
               estimators: Sequence[str] = DEFAULT_ESTIMATORS, rows: Optional[Sequence[str]] = None, seeds: int = 2,
-              n: int = 600, folds: int = 3, denoiser_steps: int = 300, max_pixels: Optional[int] = DEFAULT_MAX_PIXELS,
+              n: int = 600, folds: int = 3, denoiser_steps: Optional[int] = None, max_pixels: Optional[int] = DEFAULT_MAX_PIXELS,
               dry_run: bool = False, progress: Optional[Callable[[str], None]] = None,
               on_problem: Optional[Callable[[str, str], None]] = None) -> report.Report:
     """Run the downstream check (see the module docstring).
@@ -94,7 +96,7 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     `estimators`: some of `estimators.ESTIMATORS`; `rows`: the colour check's training sets
     (`experiment.ROWS`; None: `default_rows`); `seeds`: repetitions with new synthetic sets;
     `n`: synthetic training images per set; `folds`: cross-validation folds of the real files;
-    `denoiser_steps`: Adam steps per denoiser; `max_pixels`: the largest CG image read;
+    `denoiser_steps`: Adam steps per denoiser (None: chosen on a validation split of the burst); `max_pixels`: the largest CG image read;
     `dry_run`: read and vet every input and the profile, train nothing; `progress`: a callable
     taking one line of text; `on_problem(path, reason)`: called as each input is left out.
 

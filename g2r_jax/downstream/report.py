@@ -180,12 +180,3 @@ def write_report(report: Report, folder) -> list[Path]:
         written.append(folder / "errors.png")
     return written
 
-
-def denoising_sentence(result) -> str:
-    """One sentence: the denoiser trained with g2r_jax's noise on the CG images against UPI's and
-    real pairs, on the burst's held-out frames."""
-    mean = {key: float(np.mean(v)) for key, v in result.psnr.items() if len(v)}
-    parts = [f"{label} {mean[key]:.2f} dB" for key, label in
-             ((("shipped", "cg"), "g2r_jax noise on the CG images"), (("upi", "cg"), "UPI noise"),
-              (("real", "scene"), "real pairs of the burst")) if key in mean]
-    return f"denoising the burst's held-out frames (noisy {result.noisy_psnr:.2f} dB): " + ", ".join(parts) + "."
