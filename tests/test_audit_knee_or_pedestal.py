@@ -68,7 +68,6 @@ def check_knee(report, case):
     assert "black_level" not in named, (case, summary(report))
     if found:
         first = found[0]
-        assert first.get("source") or first["cause"] in NOISE + ("unexplained",), (case, summary(report))
         assert (first.get("source") or first["cause"]) in NOISE, (case, summary(report))
         assert not (first["cause"] == "unexplained" and first.get("alternative") == "black_level"), (case, summary(report))
     return found
@@ -181,8 +180,6 @@ def test_pedestal_in_one_large_file(with_dark):
         files += dark_frames(truth, 7, height=1000, width=1500)
     report = diagnose(camera("SonyA57"), files, seed=7)
     check_pedestal(report, case)
-    assert not [f for f in significant(report) if f["cause"] in NOISE and f.get("kept")
-                and significant(report).index(f) == 0], summary(report)
 
 
 @pytest.mark.slow

@@ -41,7 +41,7 @@ def _plain(value):
 
 
 FINDING_KEYS = ("cause", "significant", "score", "statistic", "evidence", "params", "gain", "p", "kept", "candidate",
-                "sentence", "action", "p_words")
+                "sentence", "action", "p_words", "pedestal_ruled_out")
 
 
 def to_json(report: dict) -> dict:
