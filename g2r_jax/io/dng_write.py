@@ -93,118 +93,142 @@ def _check_geometry(where, info: DngInfo, height: int, width: int):
     return area, crop
 
 
-def _extratags(where, mosaic: np.ndarray, info: DngInfo) -> list:
-    """The DNG tags (code, type, count, value, writeonce) for tifffile, in spec ch. 4 terms."""
-    height, width = mosaic.shape
-    tags = []
+class _TagList:
+    """The tags of one DNG as tifffile's `extratags` (code, type, count, value, writeonce);
+    `add` converts a value to its TIFF type (a rational that cannot be written is a DngError)."""
 
-    def add(name, dtype, values):
+    def __init__(self, where):
+        self.where, self.tags = where, []
+
+    def add(self, name, dtype, values):
         if dtype in (BYTE, UNDEFINED):
             data = bytes(values)
-            tags.append((TAGS[name], dtype, len(data), data, True))
+            self.tags.append((TAGS[name], dtype, len(data), data, True))
         elif dtype == ASCII:
-            tags.append((TAGS[name], ASCII, 0, values, True))
+            self.tags.append((TAGS[name], ASCII, 0, values, True))
         elif dtype in (RATIONAL, SRATIONAL):
             try:
                 flat = to_rationals(values, signed=dtype == SRATIONAL)
             except ValueError as exc:
-                raise DngError(where, f"{name}: {exc}") from None
-            tags.append((TAGS[name], dtype, len(flat) // 2, flat, True))
+                raise DngError(self.where, f"{name}: {exc}") from None
+            self.tags.append((TAGS[name], dtype, len(flat) // 2, flat, True))
         elif dtype == DOUBLE:
             vals = tuple(float(v) for v in np.asarray(values, dtype=np.float64).ravel())
-            tags.append((TAGS[name], DOUBLE, len(vals), vals, True))
+            self.tags.append((TAGS[name], DOUBLE, len(vals), vals, True))
         else:
             vals = tuple(int(v) for v in np.asarray(values).ravel())
-            tags.append((TAGS[name], dtype, len(vals), vals, True))
+            self.tags.append((TAGS[name], dtype, len(vals), vals, True))
 
-    n_matrices = len(info.color_matrices)
-    illuminant_data = tuple(info.illuminant_data or ())
-    uses_1_6 = n_matrices > 2 or any(d is not None for d in illuminant_data)
-    version = (1, 6, 0, 0) if uses_1_6 else (1, 4, 0, 0)
-    add("NewSubfileType", LONG, [0])
-    add("Orientation", SHORT, [1])   # 1: rows top to bottom, columns left to right (TIFF 6.0; the SDK warns without it)
+
+def _extratags(where, mosaic: np.ndarray, info: DngInfo) -> list:
+    """The DNG tags (code, type, count, value, writeonce) for tifffile, in spec ch. 4 terms,
+    sorted by code."""
+    height, width = mosaic.shape
+    tags = _TagList(where)
+    _camera_tags(tags, info)
+    _level_tags(tags, info)
+    area, crop = _check_geometry(where, info, height, width)
+    if crop is not None:
+        tags.add("DefaultCropOrigin", RATIONAL, crop[0])
+        tags.add("DefaultCropSize", RATIONAL, crop[1])
+    _colour_tags(tags, info)
+    if area is not None:
+        tags.add("ActiveArea", LONG, area)
+    _forward_opcode_noise_tags(tags, info)
+    return sorted(tags.tags, key=lambda t: t[0])
+
+
+def _camera_tags(tags: _TagList, info: DngInfo) -> None:
+    """Version, names, CFA layout and exposure (spec ch. 4; DNG 1.6 when a third matrix or
+    IlluminantData is written)."""
+    uses_1_6 = len(info.color_matrices) > 2 or any(d is not None for d in tuple(info.illuminant_data or ()))
+    tags.add("NewSubfileType", LONG, [0])
+    tags.add("Orientation", SHORT, [1])   # 1: rows top to bottom, columns left to right (TIFF 6.0; the SDK warns without it)
     if info.make:
-        add("Make", ASCII, _ascii(info.make))
+        tags.add("Make", ASCII, _ascii(info.make))
     if info.model:
-        add("Model", ASCII, _ascii(info.model))
-    add("CFARepeatPatternDim", SHORT, [2, 2])
-    add("CFAPattern", BYTE, [int(c) for c in info.cfa_pattern])
+        tags.add("Model", ASCII, _ascii(info.model))
+    tags.add("CFARepeatPatternDim", SHORT, [2, 2])
+    tags.add("CFAPattern", BYTE, [int(c) for c in info.cfa_pattern])
     if info.exposure_time is not None and info.exposure_time > 0:
-        add("ExposureTime", RATIONAL, [info.exposure_time])
+        tags.add("ExposureTime", RATIONAL, [info.exposure_time])
     if info.iso is not None and info.iso > 0:
-        add("ISOSpeedRatings", SHORT, [min(65535, int(round(info.iso)))])
-    add("DNGVersion", BYTE, version)
-    add("DNGBackwardVersion", BYTE, (1, 3, 0, 0) if info.opcode_lists else (1, 1, 0, 0))
-    add("UniqueCameraModel", ASCII, _ascii(info.unique_camera_model or
-                                           " ".join(p for p in (info.make, info.model) if p) or "g2r_jax"))
-    add("CFAPlaneColor", BYTE, [0, 1, 2])
-    add("CFALayout", SHORT, [1])
+        tags.add("ISOSpeedRatings", SHORT, [min(65535, int(round(info.iso)))])
+    tags.add("DNGVersion", BYTE, (1, 6, 0, 0) if uses_1_6 else (1, 4, 0, 0))
+    tags.add("DNGBackwardVersion", BYTE, (1, 3, 0, 0) if info.opcode_lists else (1, 1, 0, 0))
+    tags.add("UniqueCameraModel", ASCII, _ascii(info.unique_camera_model or
+                                                " ".join(p for p in (info.make, info.model) if p) or "g2r_jax"))
+    tags.add("CFAPlaneColor", BYTE, [0, 1, 2])
+    tags.add("CFALayout", SHORT, [1])
 
+
+def _level_tags(tags: _TagList, info: DngInfo) -> None:
+    """BlackLevel (one value, or per 2x2 position) and WhiteLevel (spec ch. 4)."""
     black = np.asarray(info.black_level, dtype=np.float64).ravel()
     if black.size == 1:
         black = np.repeat(black, 4)
     if black.size != 4 or np.any(black < 0) or not np.all(np.isfinite(black)):
-        raise DngError(where, f"black_level must be 4 non-negative values, got {tuple(black)}")
+        raise DngError(tags.where, f"black_level must be 4 non-negative values, got {tuple(black)}")
     if np.all(black == black[0]):
-        add("BlackLevelRepeatDim", SHORT, [1, 1])
+        tags.add("BlackLevelRepeatDim", SHORT, [1, 1])
         black = black[:1]
     else:
-        add("BlackLevelRepeatDim", SHORT, [2, 2])
+        tags.add("BlackLevelRepeatDim", SHORT, [2, 2])
     if np.all(black == np.round(black)):
-        add("BlackLevel", LONG, black.astype(np.int64))
+        tags.add("BlackLevel", LONG, black.astype(np.int64))
     else:
-        add("BlackLevel", RATIONAL, black)
+        tags.add("BlackLevel", RATIONAL, black)
     white = float(info.white_level)
     if not (0 < white <= 65535) or white != round(white) or white <= black.max():
-        raise DngError(where, f"white_level must be an integer in (black, 65535], got {white}")
-    add("WhiteLevel", LONG, [int(white)])
+        raise DngError(tags.where, f"white_level must be an integer in (black, 65535], got {white}")
+    tags.add("WhiteLevel", LONG, [int(white)])
 
-    area, crop = _check_geometry(where, info, height, width)
-    if crop is not None:
-        add("DefaultCropOrigin", RATIONAL, crop[0])
-        add("DefaultCropSize", RATIONAL, crop[1])
 
+def _colour_tags(tags: _TagList, info: DngInfo) -> None:
+    """ColorMatrix, CameraCalibration, AnalogBalance, the as-shot white, BaselineExposure,
+    CalibrationIlluminant and IlluminantData (spec ch. 4; spec 'Colour' for their use)."""
+    n_matrices = len(info.color_matrices)
     illuminants = tuple(int(i) for i in info.calibration_illuminants)
     for k, m in enumerate(info.color_matrices, start=1):
-        add(f"ColorMatrix{k}", SRATIONAL, np.asarray(m, dtype=np.float64).reshape(9))
+        tags.add(f"ColorMatrix{k}", SRATIONAL, np.asarray(m, dtype=np.float64).reshape(9))
     if info.camera_calibrations:
         if len(info.camera_calibrations) != n_matrices:
-            raise DngError(where, "camera_calibrations must match color_matrices in number")
+            raise DngError(tags.where, "camera_calibrations must match color_matrices in number")
         for k, m in enumerate(info.camera_calibrations, start=1):
-            add(f"CameraCalibration{k}", SRATIONAL, np.asarray(m, dtype=np.float64).reshape(9))
+            tags.add(f"CameraCalibration{k}", SRATIONAL, np.asarray(m, dtype=np.float64).reshape(9))
     if info.analog_balance is not None:
-        add("AnalogBalance", RATIONAL, np.asarray(info.analog_balance).reshape(3))
+        tags.add("AnalogBalance", RATIONAL, np.asarray(info.analog_balance).reshape(3))
     if info.as_shot_neutral is not None:
         neutral = np.asarray(info.as_shot_neutral, dtype=np.float64).reshape(3)
         if np.any(neutral <= 0):
-            raise DngError(where, f"as_shot_neutral must be positive, got {tuple(neutral)}")
-        add("AsShotNeutral", RATIONAL, neutral)
+            raise DngError(tags.where, f"as_shot_neutral must be positive, got {tuple(neutral)}")
+        tags.add("AsShotNeutral", RATIONAL, neutral)
     elif info.as_shot_white_xy is not None:   # spec: at most one of AsShotNeutral, AsShotWhiteXY
-        add("AsShotWhiteXY", RATIONAL, np.asarray(info.as_shot_white_xy).reshape(2))
-    add("BaselineExposure", SRATIONAL, [float(info.baseline_exposure)])
+        tags.add("AsShotWhiteXY", RATIONAL, np.asarray(info.as_shot_white_xy).reshape(2))
+    tags.add("BaselineExposure", SRATIONAL, [float(info.baseline_exposure)])
     for k, ill in enumerate(illuminants[:n_matrices], start=1):
-        add(f"CalibrationIlluminant{k}", SHORT, [ill])
-    for k, white in enumerate(illuminant_data[:n_matrices], start=1):
+        tags.add(f"CalibrationIlluminant{k}", SHORT, [ill])
+    for k, white in enumerate(tuple(info.illuminant_data or ())[:n_matrices], start=1):
         if white is not None and illuminants[k - 1] == 255:   # DNG 1.6: the white of an 'other' illuminant
-            add(f"IlluminantData{k}", UNDEFINED, encode_white_xy(white, to_rationals))
-    if area is not None:
-        add("ActiveArea", LONG, area)
+            tags.add(f"IlluminantData{k}", UNDEFINED, encode_white_xy(white, to_rationals))
+
+
+def _forward_opcode_noise_tags(tags: _TagList, info: DngInfo) -> None:
+    """ForwardMatrix, OpcodeList1-3 and NoiseProfile (spec ch. 4, ch. 7)."""
     if info.forward_matrices:
-        if len(info.forward_matrices) != n_matrices:
-            raise DngError(where, "forward_matrices must match color_matrices in number")
+        if len(info.forward_matrices) != len(info.color_matrices):
+            raise DngError(tags.where, "forward_matrices must match color_matrices in number")
         for k, m in enumerate(info.forward_matrices, start=1):
-            add(f"ForwardMatrix{k}", SRATIONAL, np.asarray(m, dtype=np.float64).reshape(9))
+            tags.add(f"ForwardMatrix{k}", SRATIONAL, np.asarray(m, dtype=np.float64).reshape(9))
     for k in (1, 2, 3):
         data = info.opcode_lists.get(f"OpcodeList{k}")
         if data:
-            add(f"OpcodeList{k}", UNDEFINED, bytes(data))
+            tags.add(f"OpcodeList{k}", UNDEFINED, bytes(data))
     if info.noise_profile is not None:
         noise = np.asarray(info.noise_profile, dtype=np.float64).ravel()
         if noise.size not in (2, 6) or np.any(noise < 0):
-            raise DngError(where, f"noise_profile must be 1 or 3 non-negative (S, O) pairs, got {noise.size} values")
-        add("NoiseProfile", DOUBLE, noise)
-    tags.sort(key=lambda t: t[0])
-    return tags
+            raise DngError(tags.where, f"noise_profile must be 1 or 3 non-negative (S, O) pairs, got {noise.size} values")
+        tags.add("NoiseProfile", DOUBLE, noise)
 
 
 def write_dng_bytes(mosaic: np.ndarray, info: DngInfo, *, where="<dng bytes>", compression: str = "none") -> bytes:
