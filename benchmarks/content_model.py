@@ -18,9 +18,10 @@ Protocol, per camera and seed (the 3 folds of the downstream benchmark, `g2r_jax
   tested on the test fold's real images (angular error, degrees). The test images are used for
   nothing else.
 
-    python benchmarks/content_model.py [--cameras Canon600D,NikonD40] [--seeds 1] [--n 300]
+    python benchmarks/content_model.py [--cameras Canon600D,NikonD40] [--seeds 1] [--first-seed 0] [--n 300]
         [--estimators cnn,moments] [--families chroma,chroma_tone,chroma@0.5] [--select-estimator moments]
         [--jobs 1] [--json out/content_model.json] [--markdown out/content_model.md]
+    python benchmarks/content_model.py --fit-speed 300     # the g2r-fit-profile step's time
 
 Data: ../shared/data/estimation/nus/<camera>.npz and ../shared/data/cg/carla/*.png (as
 benchmarks/downstream_nus.py, whose camera profiles it uses).
@@ -120,7 +121,7 @@ def run_camera(job) -> dict:
     profile = camera_profile(name)
     errors = {f"{r}/{e}": [] for r in ROWS for e in estimators}
     chosen = []
-    for seed in range(seeds):
+    for seed in seeds:
         views = training_sets.cg_views(linear, n, seed)
         srgb_views = training_sets.linear_to_srgb_views(views)
         parts = {key: [] for key in errors}
@@ -170,11 +171,43 @@ def tables(results: dict, estimators) -> str:
     return "\n".join(out)
 
 
+def fit_speed(count: int) -> str:
+    """Seconds the content-model step of g2r-fit-profile takes for `count` small DNGs (the CARLA
+    frames, 190 x 320, made RAW for Canon600D and written to a temporary folder first)."""
+    import tempfile
+
+    import g2r_jax
+    from g2r_jax.batch.conversion import ConvertOptions, convert_files
+    from g2r_jax.content import content_model_from_files
+    from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels
+    from g2r_jax.profile.fitting import as_shot_neutral
+
+    frames = sorted(CARLA.glob("*.png"))
+    inputs = [frames[i % len(frames)] for i in range(count)]
+    with tempfile.TemporaryDirectory() as folder:
+        names = [f"frame{i:04d}" for i in range(count)]
+        convert_files(inputs, g2r_jax.load_profile("Canon600D"), Path(folder), options=ConvertOptions(seed=0),
+                      names=names, write_manifest=False)
+        paths = sorted(Path(folder).glob("*.dng"))
+        start, cpu = time.perf_counter(), time.process_time()
+
+        def read(path):
+            info = read_dng_info(path)
+            return read_dng_pixels(path, info), info.cfa_pattern, info.black_level, info.white_level, as_shot_neutral(info)
+
+        model, used = content_model_from_files(paths, read)
+        seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
+    return (f"content model of {used} DNGs of 190 x 320 (read, thumbnails, statistics, fit): {seconds:.2f} s wall, "
+            f"{cpu:.2f} s CPU; "
+            f"chroma scale {float(model.chroma_scale):.2f}")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cameras", default=",".join(CAMERAS))
     parser.add_argument("--estimators", default="cnn,moments")
     parser.add_argument("--seeds", type=int, default=1)
+    parser.add_argument("--first-seed", type=int, default=0, help="seeds first-seed .. first-seed + seeds - 1")
     parser.add_argument("--n", type=int, default=300)
     parser.add_argument("--families", default="chroma,chroma_tone,chroma@0.65,chroma@0.5,chroma@0.35",
                         help="candidates besides 'identity': chroma and chroma_tone fitted from the statistics, "
@@ -183,12 +216,17 @@ def main(argv=None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="cameras run in this many processes at once")
     parser.add_argument("--json", type=Path)
     parser.add_argument("--markdown", type=Path)
+    parser.add_argument("--fit-speed", type=int, metavar="N", help="only time the g2r-fit-profile step on N small DNGs")
     args = parser.parse_args(argv)
+    if args.fit_speed:
+        print(fit_speed(args.fit_speed))
+        return 0
     if not NUS.is_dir() or not CARLA.is_dir():
         print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
         return 2
     cameras, estimators = args.cameras.split(","), tuple(args.estimators.split(","))
-    jobs = [(c, estimators, args.seeds, args.n, tuple(args.families.split(",")), args.select_estimator) for c in cameras]
+    seeds = tuple(range(args.first_seed, args.first_seed + args.seeds))
+    jobs = [(c, estimators, seeds, args.n, tuple(args.families.split(",")), args.select_estimator) for c in cameras]
     start = time.perf_counter()
     results = {}
     if args.jobs > 1:

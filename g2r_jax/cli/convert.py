@@ -53,6 +53,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--iso", type=float, help="fixed ISO instead of one drawn per image")
     parser.add_argument("--no-noise", action="store_true", help="do not add sensor noise")
     parser.add_argument("--no-effects", action="store_true", help="do not add the profile's sensor effects")
+    content = parser.add_mutually_exclusive_group()
+    content.add_argument("--content-model", action="store_true",
+                         help="apply the profile's content model (fitted by g2r-fit-profile) even where the "
+                              "profile leaves it off by default")
+    content.add_argument("--no-content-model", action="store_true",
+                         help="do not apply the profile's content model")
     parser.add_argument("--illuminants", type=Path, metavar="CSV",
                         help="CSV with columns r_over_g,g,b_over_g; row i for the i-th input in sorted order")
     parser.add_argument("--transfer", choices=["auto", "srgb", "gamma2.2", "linear"], default="auto",
@@ -137,6 +143,32 @@ def read_illuminant_csv(path: Path):
     return np.stack(neutrals)
 
 
+def _content_choice(profile, args, say):
+    """The profile with its content model kept, forced on or dropped as the flags say."""
+    from g2r_jax.content import content_model
+    from g2r_jax.profile.schema import replace
+
+    model = profile.content
+    if args.engine == "ray" and (args.content_model or args.no_content_model):
+        raise ValueError("--content-model / --no-content-model: not with --engine ray (its workers load the "
+                         "profile file as it is)")
+    if args.content_model and model is None:
+        raise ValueError(f"--content-model: profile {shown(profile.info.name)} has no content model "
+                         "(g2r-fit-profile fits one from the camera's DNGs)")
+    if model is None:
+        return profile
+    if args.no_content_model:
+        return replace(profile, content=None)
+    if args.content_model:
+        model = content_model(float(model.chroma_scale), float(model.tone_power), family=model.family,
+                              source=model.source, target=dict(model.target), apply_by_default=True)
+        profile = replace(profile, content=model)
+    if model.apply_by_default:
+        say(f"content model: {model.family}, chroma scale {float(model.chroma_scale):.2f}, tone power "
+            f"{float(model.tone_power):.2f} (--no-content-model turns it off)")
+    return profile
+
+
 def body(args) -> int:
     from g2r_jax.profile import schema as profile_module
     from g2r_jax.batch.conversion import IMAGE_EXTENSIONS, ConvertOptions, convert_files
@@ -157,8 +189,9 @@ def body(args) -> int:
         print(f"g2r-convert: warning: profile {shown(profile_name)} has no noise model (shot and read noise are 0): "
               "the DNGs will be noise-free; fit the noise with g2r-fit-profile (NoiseProfile tags, the pixels, or "
               "--noise-table)", file=sys.stderr)
+    profile = _content_choice(profile, args, say)
     if args.colour != "matrix" and profile.spectral is None:
-        from g2r_jax.colour.spectral import attach_spectral
+        from g2r_jax.profile.editing import attach_spectral
 
         profile = attach_spectral(profile)
         print(f"g2r-convert: profile {profile.info.name!r} has no sensitivities; using ones "

@@ -56,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "wavelength,r,g,b), stored in the profile for --colour spectral")
     parser.add_argument("--sensitivities-camera", help="camera name inside a camspec file with several cameras")
     parser.add_argument("--name", help="profile name (default: the output file's stem)")
+    parser.add_argument("--no-content-model", action="store_true",
+                        help="do not fit the content model (the statistics of the DNGs' scenes that g2r-convert "
+                             "can bring CG images toward; stored off by default, see docs validation/content_model)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the mixture model's initialisation")
     add_common_flags(parser)
     return parser
@@ -126,7 +129,7 @@ def _with_sensitivities(profile, path, camera, chromaticities, infos):
 
     from g2r_jax.illuminants.distributions import neutral_to_chromaticity
     from g2r_jax.io.sensitivities import read_sensitivities
-    from g2r_jax.colour.spectral import attach_spectral
+    from g2r_jax.profile.editing import attach_spectral
 
     sensitivities = read_sensitivities(path, camera)
     if chromaticities is None:
@@ -307,8 +310,33 @@ def body(args) -> int:
         print(f"g2r-fit-profile: note: {one_line(line)}", file=sys.stderr)
     if args.sensitivities:
         profile = _with_sensitivities(profile, args.sensitivities, args.sensitivities_camera, chromaticities, infos)
+    if chromaticities is None and not args.no_content_model:
+        profile = _with_content_model(profile, infos, args)
     _write_profile(profile, args, infos, failures)
     return 1 if failures else 0
+
+
+def _with_content_model(profile, infos, args):
+    """The profile with the content model of its DNGs' scenes (`g2r_jax.content`), fitted without
+    labels against the reference CG set; stored off by default (the page says why)."""
+    from g2r_jax.content import content_model_from_files
+    from g2r_jax.io.dng_read import read_dng_pixels
+    from g2r_jax.profile.fitting import as_shot_neutral
+    from g2r_jax.profile.schema import replace
+
+    def read(info):
+        return read_dng_pixels(info.path, info), info.cfa_pattern, info.black_level, info.white_level, as_shot_neutral(info)
+
+    skipped = []
+    model, used = content_model_from_files(infos, read, on_error=lambda info, problem: skipped.append(info.path))
+    if not args.quiet:
+        if model is None:
+            print("g2r-fit-profile: note: no content model (no file gave scene statistics)", file=sys.stderr)
+        else:
+            print(f"g2r-fit-profile: content model: {model.family}, chroma scale {float(model.chroma_scale):.2f} "
+                  f"from {used} file(s)' scene statistics; stored off (g2r-convert --content-model applies it)"
+                  + (f"; {len(skipped)} file(s) too small or without a neutral" if skipped else ""), file=sys.stderr)
+    return profile if model is None else replace(profile, content=model)
 
 
 def illuminant_reason(profile) -> str:

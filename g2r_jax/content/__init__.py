@@ -11,6 +11,7 @@ illuminants only).
 """
 
 from g2r_jax.content.fitting import fit_content_model
+from g2r_jax.content.from_files import content_model_from_files, mosaic_thumbnail
 from g2r_jax.content.model import FAMILIES, ContentModel, apply, content_model, identity
 from g2r_jax.content.real_images import (camera_rgb_to_linear_srgb, srgb_to_camera_matrices,
                                        srgb_to_white_balanced_camera, white_balanced_camera_rgb)
@@ -18,5 +19,5 @@ from g2r_jax.content.scene_statistics import NAMES, ContentStatistics, statistic
 from g2r_jax.content.serialise import content_from_dict, content_to_dict
 
 __all__ = ["FAMILIES", "NAMES", "ContentModel", "ContentStatistics", "apply", "camera_rgb_to_linear_srgb",
-           "content_from_dict", "content_model", "content_to_dict", "fit_content_model", "identity", "srgb_to_camera_matrices",
+           "content_from_dict", "content_model", "content_model_from_files", "content_to_dict", "fit_content_model", "identity", "mosaic_thumbnail", "srgb_to_camera_matrices",
            "srgb_to_white_balanced_camera", "statistics", "white_balanced_camera_rgb"]

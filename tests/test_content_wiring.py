@@ -1,0 +1,103 @@
+"""The content model where a user meets it: profiles (with and without the block), unprocess,
+g2r-fit-profile and g2r-convert."""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import numpy as np
+import pytest
+
+import g2r_jax
+from g2r_jax import content
+from g2r_jax.profile.schema import profile_from_dict, profile_to_dict, replace
+
+
+def _image():
+    return np.random.default_rng(0).integers(0, 256, (32, 48, 3)).astype(np.uint8)
+
+
+def test_a_profile_without_a_content_model_converts_exactly_as_before():
+    profile = g2r_jax.load_profile("Canon600D")
+    assert profile.content is None and "content" not in profile_to_dict(profile)
+    key = jax.random.PRNGKey(3)
+    plain, _ = g2r_jax.unprocess(key, _image(), profile)
+    unchanged, _ = g2r_jax.unprocess(key, _image(), profile, content=False)
+    off_by_default, _ = g2r_jax.unprocess(key, _image(), replace(profile, content=content.content_model(0.3)))
+    assert np.array_equal(plain, unchanged) and np.array_equal(plain, off_by_default)
+    with pytest.raises(ValueError, match="no content model"):
+        g2r_jax.unprocess(key, _image(), profile, content=True)
+
+
+def test_the_content_model_changes_the_mosaic_when_on():
+    profile = g2r_jax.load_profile("Canon600D")
+    key = jax.random.PRNGKey(3)
+    plain, _ = g2r_jax.unprocess(key, _image(), profile)
+    on_by_default = replace(profile, content=content.content_model(0.3, apply_by_default=True))
+    adapted, metadata = g2r_jax.unprocess(key, _image(), on_by_default)
+    forced, _ = g2r_jax.unprocess(key, _image(), replace(profile, content=content.content_model(0.3)), content=True)
+    turned_off, _ = g2r_jax.unprocess(key, _image(), on_by_default, content=False)
+    assert not np.array_equal(plain, adapted)
+    assert np.array_equal(adapted, forced) and np.array_equal(plain, turned_off)
+    batch, _ = g2r_jax.unprocess_batch(key[None], _image()[None], on_by_default)
+    assert np.array_equal(batch[0], adapted)
+
+
+def test_profile_json_round_trip_keeps_the_model_and_names_a_bad_block(tmp_path):
+    profile = replace(g2r_jax.load_profile("Canon600D"), content=content.content_model(0.5, source="test"))
+    document = json.loads(json.dumps(profile_to_dict(profile)))
+    back = profile_from_dict(document, "cam.json")
+    assert float(back.content.chroma_scale) == pytest.approx(0.5) and back.content.apply_by_default is False
+    document["content"]["chroma_scale"] = -1
+    with pytest.raises(Exception, match=r"cam\.json.*content"):
+        profile_from_dict(document, "cam.json")
+
+
+def test_mosaic_thumbnail_zeroes_clipped_blocks_and_refuses_small_mosaics():
+    mosaic = np.full((256, 256), 1000, np.uint16)
+    mosaic[:8, :8] = 4095
+    thumb = content.mosaic_thumbnail(mosaic, (0, 1, 1, 2), 0, 4095)
+    assert thumb.shape == (64, 64, 3) and np.all(thumb[0, 0] == 0) and thumb[10, 10, 1] == pytest.approx(1000 / 4095)
+    with pytest.raises(ValueError, match="smaller"):
+        content.mosaic_thumbnail(mosaic[:100], (0, 1, 1, 2), 0, 4095)
+
+
+def test_fit_from_files_goes_on_past_a_bad_file():
+    rng = np.random.default_rng(1)
+    good = lambda: (rng.integers(100, 3000, (256, 256)), (0, 1, 1, 2), 64, 4095, np.array([0.5, 1.0, 0.6]))
+    files = {"a.dng": good(), "b.dng": good(), "broken.dng": None, "tiny.dng": (np.zeros((10, 10)), (0, 1, 1, 2), 0, 4095,
+                                                                           np.ones(3))}
+
+    def read(name):
+        if files[name] is None:
+            raise OSError("cannot read")
+        return files[name]
+
+    problems = []
+    model, used = content.content_model_from_files(list(files), read, on_error=lambda f, p: problems.append(f))
+    assert used == 2 and sorted(problems) == ["broken.dng", "tiny.dng"]
+    assert model is not None and 0.0 <= float(model.chroma_scale) <= 1.0
+    assert content.content_model_from_files(["broken.dng"], read) == (None, 0)
+
+
+@pytest.mark.slow
+def test_fit_profile_stores_the_model_off_and_convert_follows_the_flags(tmp_path):
+    from g2r_jax.cli import convert, fit_profile
+
+    dngs = tmp_path / "dngs"
+    assert convert.main(["--example", "--profile", "gopro_hero6", "-o", str(dngs), "--quiet"]) == 0
+    assert fit_profile.main([str(dngs), "-o", str(tmp_path / "cam.json")]) == 0
+    block = json.loads((tmp_path / "cam.json").read_text())["content"]
+    assert block["apply_by_default"] is False and "1 DNG file(s)" in block["source"]
+    assert fit_profile.main([str(dngs), "-o", str(tmp_path / "plain.json"), "--no-content-model"]) == 0
+    assert "content" not in json.loads((tmp_path / "plain.json").read_text())
+    document = json.loads((tmp_path / "cam.json").read_text())
+    document["content"]["chroma_scale"] = 0.3
+    (tmp_path / "strong.json").write_text(json.dumps(document))
+    outputs = {}
+    for name, flags in {"default": [], "off": ["--no-content-model"], "on": ["--content-model"]}.items():
+        assert convert.main(["--example", "--profile", str(tmp_path / "strong.json"), "-o", str(tmp_path / name),
+                             "--quiet"] + flags) == 0
+        outputs[name] = (tmp_path / name / "colour_checker_scene.dng").read_bytes()
+    assert outputs["default"] == outputs["off"] != outputs["on"]
