@@ -254,10 +254,10 @@ def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOp
     """
     if not write_manifest:
         return _convert_files(None, inputs, profile, out_dir, neutrals=neutrals, options=options, on_error=on_error,
-                              write_manifest=write_manifest, names=names)
+                              names=names)
     with OutputFolder(out_dir) as folder:
         return _convert_files(folder, inputs, profile, out_dir, neutrals=neutrals, options=options, on_error=on_error,
-                              write_manifest=write_manifest, names=names)
+                              names=names)
 
 
 def _folder_notes(folder) -> list:
@@ -273,46 +273,83 @@ def _folder_notes(folder) -> list:
 
 
 def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: ConvertOptions | None = None,
-                  on_error=None, write_manifest: bool = True, names=None) -> ConvertResult:
-    from g2r_jax.io.dng_write import COMPRESSIONS, write_dng_bytes
+                   on_error=None, names=None) -> ConvertResult:
+    from g2r_jax.io.dng_write import COMPRESSIONS
 
     options = options or ConvertOptions()
     if options.compression not in COMPRESSIONS:
         raise ValueError(f"unknown DNG compression {options.compression!r} (choose from {', '.join(COMPRESSIONS)})")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    inputs = [Path(p) for p in inputs]
-    records, errors = {}, []
-    report = (lambda line: (errors.append(line), on_error and on_error(line)))
-
-    names = output_names(inputs) if names is None else [str(n) for n in names]
-    duplicates = colliding_names(names)
-
-    progress = None
-    if options.progress:
-        from tqdm import tqdm
-        progress = tqdm(total=len(inputs), unit="image", desc="g2r-convert")
-
-    lens = {}
-
-    def lens_for(height, width):
-        if (height, width) not in lens:
-            lens[(height, width)] = lens_shading_for(profile, height, width)
-        return lens[(height, width)]
-
     if options.lens_shading:
         lens_shading_for(profile, 2, 2)  # fail early, before any file, if the profile has no opcodes
-    render_effects = options.effects and not changes_nothing(profile.effects)
+    run = _BatchRun(folder, [Path(p) for p in inputs], profile, out_dir, neutrals, options, on_error, names)
+    with futures.ThreadPoolExecutor(max(1, options.workers)) as pool:
+        run.convert(pool)
+    if run.progress:
+        run.progress.close()
+    ordered = [run.records[i] for i in sorted(run.records)]
+    if folder is None:
+        return ConvertResult(records=ordered, errors=run.errors)
+    rewritten = {folder.key(r) for r in ordered}
+    folder.rewrite([r for r in folder.records if folder.key(r) not in rewritten] + ordered)
+    return ConvertResult(records=ordered, errors=run.errors, notes=_folder_notes(folder))
 
-    def write(index, path, mosaic, metadata):
-        output = out_dir / f"{names[index]}.dng"
+
+class _BatchRun:
+    """One conversion batch: files are decoded on a thread pool ahead of the compute (a window of
+    2 x batch size), gathered into groups of one padded shape (`plan_buckets`), run through one
+    compiled call per group, and handed to writer threads one batch later, so that decoding,
+    computing and writing overlap; records and error lines are kept per input index."""
+
+    def __init__(self, folder, inputs, profile, out_dir, neutrals, options, on_error, names):
+        self.folder, self.inputs, self.profile, self.out_dir = folder, inputs, profile, out_dir
+        self.neutrals, self.options, self.on_error = neutrals, options, on_error
+        self.names = output_names(inputs) if names is None else [str(n) for n in names]
+        self.duplicates = colliding_names(self.names)
+        self.records, self.errors, self.lens = {}, [], {}
+        self.progress = None
+        if options.progress:
+            from tqdm import tqdm
+            self.progress = tqdm(total=len(inputs), unit="image", desc="g2r-convert")
+        self.render_effects = options.effects and not changes_nothing(profile.effects)
+        # Images are zero-padded to a few bucket shapes (bit-identical output: `valid_shapes`),
+        # except with per-size lens gains or a noise correlation kernel, which see the padding.
+        self.bucketing = not options.lens_shading and getattr(profile.noise, "correlation_kernel", None) is None
+        sizes = [size for size in map(_probe_size, inputs) if size] if self.bucketing else []
+        self.buckets = plan_buckets([(h - h % 2, w - w % 2) for h, w in sizes])
+        self.window = max(2 * options.batch_size, options.workers)
+        self.pending = {}    # batch group (bucket, dtype, transfer) -> [(index, image)] waiting for partners
+        self.preparing = []  # the ahead-of-time compilation of the first group, awaited before the first call
+        self.in_flight = []  # batches dispatched to the device, handed to the writers one batch later
+        self.writing = []
+        self.pool = None
+
+    def report(self, line):
+        self.errors.append(line)
+        if self.on_error:
+            self.on_error(line)
+
+    def lens_for(self, height, width):
+        if (height, width) not in self.lens:
+            self.lens[(height, width)] = lens_shading_for(self.profile, height, width)
+        return self.lens[(height, width)]
+
+    def write(self, index, path, mosaic, metadata):
+        """Write one DNG (atomically; its manifest record appended once it is in place)."""
+        from g2r_jax.io.dng_write import write_dng_bytes
+
+        options, name = self.options, self.names[index]
+        output = self.out_dir / f"{name}.dng"
         try:
             output.parent.mkdir(parents=True, exist_ok=True)
-            opcodes = lens_for(*mosaic.shape)[1] if options.lens_shading else None
-            info = dng_info_for(profile, metadata, mosaic.shape[0], mosaic.shape[1], noise=options.noise,
+            opcodes = self.lens_for(*mosaic.shape)[1] if options.lens_shading else None
+            info = dng_info_for(self.profile, metadata, mosaic.shape[0], mosaic.shape[1], noise=options.noise,
                                 opcode_list2=opcodes)
-            record = _manifest_record(path, f"{names[index]}.dng", metadata, options.seed)
-            atomic_write_bytes(output, write_dng_bytes(np.asarray(mosaic), info, where=output, compression=options.compression),
+            record = _manifest_record(path, f"{name}.dng", metadata, options.seed)
+            folder = self.folder
+            atomic_write_bytes(output, write_dng_bytes(np.asarray(mosaic), info, where=output,
+                                                       compression=options.compression),
                                after_rename=(lambda: folder.append(record, output)) if folder else None)
         except DngError:
             raise                # OutputError included: the folder failed, not this input
@@ -320,131 +357,131 @@ def _convert_files(folder, inputs, profile, out_dir, *, neutrals=None, options: 
             raise DngError(path, f"writing {output} failed: {type(error).__name__}: {error}") from error
         return index, record
 
-    with futures.ThreadPoolExecutor(max(1, options.workers)) as pool:
-        def submit_load(i):
-            return pool.submit(_load, inputs[i], options.crop_odd, options.max_pixels)
+    def collect(self, future):
+        _collect(future, self.inputs, self.records, self.report, self.progress)
 
-        window = max(2 * options.batch_size, options.workers)
-        loading = {i: submit_load(i) for i in range(min(window, len(inputs)))}
-        writing = []
-        # Images are zero-padded to a few bucket shapes (bit-identical output: `valid_shapes`),
-        # except with per-size lens gains or a noise correlation kernel, which see the padding.
-        bucketing = not options.lens_shading and getattr(profile.noise, "correlation_kernel", None) is None
-        sizes = [size for size in map(_probe_size, inputs) if size] if bucketing else []
-        buckets = plan_buckets([(h - h % 2, w - w % 2) for h, w in sizes])
-        pending = {}   # batch group (bucket, dtype, transfer) -> [(index, image)] waiting for partners
-        preparing = []  # the ahead-of-time compilation of the first group, awaited before the first call
-        in_flight = []  # batches dispatched to the device, handed to the writers one batch later
-        next_to_load = len(loading)
+    def hand_over(self, batch, mosaics, metadata):
+        mosaics = np.asarray(mosaics)   # waits for this batch only: the next one is already queued
+        metadata = {k: np.asarray(v) for k, v in metadata.items()}
+        for j, (index, image) in enumerate(batch):
+            mosaic = mosaics[j, :image.shape[0], :image.shape[1]]
+            self.writing.append(self.pool.submit(self.write, index, self.inputs[index], mosaic,
+                                                 {k: v[j] for k, v in metadata.items()}))
+        while len(self.writing) > self.window:    # bounded memory: writers keep up or the compute waits
+            self.collect(self.writing.pop(0))
 
-        def hand_over(batch, mosaics, metadata):
-            mosaics = np.asarray(mosaics)   # waits for this batch only: the next one is already queued
-            metadata = {k: np.asarray(v) for k, v in metadata.items()}
-            for j, (index, image) in enumerate(batch):
-                mosaic = mosaics[j, :image.shape[0], :image.shape[1]]
-                writing.append(pool.submit(write, index, inputs[index], mosaic, {k: v[j] for k, v in metadata.items()}))
-            while len(writing) > window:    # bounded memory: writers keep up or the compute waits
-                _collect(writing.pop(0), inputs, records, report, progress)
+    def group_of(self, path, image):
+        shape = bucket_for(image.shape[:2], self.buckets) if self.bucketing else image.shape[:2]
+        return shape, image.dtype.str, _transfer_for(path, self.options.transfer)
 
-        def group_of(path, image):
-            shape = bucket_for(image.shape[:2], buckets) if bucketing else image.shape[:2]
-            return shape, image.dtype.str, _transfer_for(path, options.transfer)
+    def capacity(self, shape):
+        """Images per compiled call of this shape: the batch size, fewer above the batch pixel
+        budget or when there are fewer inputs (one file is not padded to a batch of four)."""
+        size = min(self.options.batch_size, len(self.inputs))
+        if self.options.max_batch_pixels is None:
+            return max(1, size)
+        return max(1, min(size, self.options.max_batch_pixels // max(1, shape[0] * shape[1])))
 
-        def capacity(shape):
-            """Images per compiled call of this shape: the batch size, fewer above the batch pixel
-            budget or when there are fewer inputs (one file is not padded to a batch of four)."""
-            size = min(options.batch_size, len(inputs))
-            if options.max_batch_pixels is None:
-                return max(1, size)
-            return max(1, min(size, options.max_batch_pixels // max(1, shape[0] * shape[1])))
+    def program(self, transfer):
+        return _batched_unprocess(self.options, transfer, self.neutrals is not None, self.render_effects)
 
-        def prepare(group):
-            """Compile (or load) the program of a batch group without running it."""
-            shape, dtype, transfer = group
-            size, spec = capacity(shape), jax.ShapeDtypeStruct
-            keys = jax.eval_shape(lambda: file_keys(0, [""] * size))
-            arguments = (keys, spec((size,) + tuple(shape) + (3,), np.dtype(dtype)),
-                         profile, spec((size, 3), jnp.float32), spec((), jnp.float32), spec((), jnp.float32),
-                         spec((size, 2), jnp.int32))
-            _batched_unprocess(options, transfer, neutrals is not None, render_effects).prepare(*arguments)
+    def prepare(self, group):
+        """Compile (or load) the program of a batch group without running it."""
+        shape, dtype, transfer = group
+        size, spec = self.capacity(shape), jax.ShapeDtypeStruct
+        keys = jax.eval_shape(lambda: file_keys(0, [""] * size))
+        arguments = (keys, spec((size,) + tuple(shape) + (3,), np.dtype(dtype)),
+                     self.profile, spec((size, 3), jnp.float32), spec((), jnp.float32), spec((), jnp.float32),
+                     spec((size, 2), jnp.int32))
+        self.program(transfer).prepare(*arguments)
 
-        def flush(group):
-            batch = pending.pop(group, [])
-            if not batch:
-                return
-            while preparing:             # its failure, if any, shows again in the call below
-                ahead = preparing.pop()
-                if ahead is not None:
-                    ahead.exception()
-            shape, _, transfer = group
-            count, size = len(batch), capacity(shape)
-            padded = batch + [batch[-1]] * (size - count) if count < size else batch
-            # arrays made with numpy and copied (device_array): jnp constructors would each compile
-            keys = file_keys(options.seed, [names[i] + inputs[i].suffix for i, _ in padded])
-            stacked = np.zeros((len(padded),) + tuple(shape) + padded[0][1].shape[2:], padded[0][1].dtype)
-            for j, (_, image) in enumerate(padded):
-                stacked[j, :image.shape[0], :image.shape[1]] = image
-            images = device_array(stacked)
-            valid_shapes = device_array([image.shape[:2] for _, image in padded], np.int32)
-            with_neutral = neutrals is not None
-            neutral_rows = device_array(np.stack([neutrals[i] for i, _ in padded]) if with_neutral
-                                        else np.ones((len(padded), 3)), np.float32)
-            iso = device_array(options.iso if options.iso is not None else 0.0, np.float32)
-            lens_gain = device_array(lens_for(images.shape[1], images.shape[2])[0] if options.lens_shading
-                                     else 1.0, np.float32)
-            mosaics, metadata = _batched_unprocess(options, transfer, with_neutral, render_effects)(
-                keys, images, profile, neutral_rows, iso, lens_gain, valid_shapes)
-            in_flight.append((batch, mosaics, metadata))   # asynchronous: decoding goes on meanwhile
-            if len(in_flight) > 1:
-                hand_over(*in_flight.pop(0))
+    def flush(self, group):
+        """Run the pending images of `group` as one padded batch (asynchronously)."""
+        batch = self.pending.pop(group, [])
+        if not batch:
+            return
+        while self.preparing:             # its failure, if any, shows again in the call below
+            ahead = self.preparing.pop()
+            if ahead is not None:
+                ahead.exception()
+        shape, _, transfer = group
+        count, size = len(batch), self.capacity(shape)
+        padded = batch + [batch[-1]] * (size - count) if count < size else batch
+        self.in_flight.append((batch,) + self._run_batch(padded, shape, transfer))
+        if len(self.in_flight) > 1:
+            self.hand_over(*self.in_flight.pop(0))
 
+    def _run_batch(self, padded, shape, transfer):
+        """(mosaics, metadata) of one padded batch, dispatched without waiting for the result."""
+        options, neutrals = self.options, self.neutrals
+        # arrays made with numpy and copied (device_array): jnp constructors would each compile
+        keys = file_keys(options.seed, [self.names[i] + self.inputs[i].suffix for i, _ in padded])
+        stacked = np.zeros((len(padded),) + tuple(shape) + padded[0][1].shape[2:], padded[0][1].dtype)
+        for j, (_, image) in enumerate(padded):
+            stacked[j, :image.shape[0], :image.shape[1]] = image
+        images = device_array(stacked)
+        valid_shapes = device_array([image.shape[:2] for _, image in padded], np.int32)
+        neutral_rows = device_array(np.stack([neutrals[i] for i, _ in padded]) if neutrals is not None
+                                    else np.ones((len(padded), 3)), np.float32)
+        iso = device_array(options.iso if options.iso is not None else 0.0, np.float32)
+        lens_gain = device_array(self.lens_for(images.shape[1], images.shape[2])[0] if options.lens_shading
+                                 else 1.0, np.float32)
+        return self.program(transfer)(keys, images, self.profile, neutral_rows, iso, lens_gain, valid_shapes)
+
+    def load(self, index):
+        """The decoded image of input `index`, or None after reporting why it cannot be used."""
+        path = self.inputs[index]
+        try:
+            if self.names[index] in self.duplicates:
+                raise collision_error(path, self.names[index])
+            return self.loading.pop(index).result()
+        except Exception as error:  # noqa: BLE001 - every per-file failure is reported, the batch goes on
+            self.loading.pop(index, None)
+            self.report(str(error) if isinstance(error, DngError) else f"{path}: {type(error).__name__}: {error}")
+            if self.progress:
+                self.progress.update(1)
+            return None
+
+    def submit_load(self, index):
+        self.loading[index] = self.pool.submit(_load, self.inputs[index], self.options.crop_odd,
+                                               self.options.max_pixels)
+
+    def convert(self, pool):
+        """The whole batch on `pool` (decoding and writing threads)."""
+        options, inputs = self.options, self.inputs
+        self.pool, self.loading = pool, {}
+        for i in range(min(self.window, len(inputs))):
+            self.submit_load(i)
+        next_to_load = len(self.loading)
         # the first file's program is compiled (or loaded) on a thread while the first files are decoded
-        first = (_predicted_group(inputs[0], options.transfer, buckets, options.max_pixels)
-                 if bucketing and inputs else None)
+        first = (_predicted_group(inputs[0], options.transfer, self.buckets, options.max_pixels)
+                 if self.bucketing and inputs else None)
         preparer = futures.ThreadPoolExecutor(1) if first else None
-        preparing.append(preparer.submit(prepare, first) if first else None)
+        self.preparing.append(preparer.submit(self.prepare, first) if first else None)
         if first:     # the keys' programs are read from the compilation cache while the first file decodes
-            file_keys(options.seed, [""] * capacity(first[0]))
+            file_keys(options.seed, [""] * self.capacity(first[0]))
         for index in range(len(inputs)):
-            path = inputs[index]
-            try:
-                if names[index] in duplicates:
-                    raise collision_error(path, names[index])
-                image = loading.pop(index).result()
-            except Exception as error:  # noqa: BLE001 - every per-file failure is reported, the batch goes on
-                loading.pop(index, None)
-                report(str(error) if isinstance(error, DngError) else f"{path}: {type(error).__name__}: {error}")
-                if progress:
-                    progress.update(1)
-                image = None
+            image = self.load(index)
             if next_to_load < len(inputs):
-                loading[next_to_load] = submit_load(next_to_load)
+                self.submit_load(next_to_load)
                 next_to_load += 1
             if image is None:
                 continue
-            group = group_of(path, image)
-            pending.setdefault(group, []).append((index, image))
-            if len(pending[group]) >= capacity(group[0]):
-                flush(group)
-            for done in [w for w in writing if w.done()]:
-                writing.remove(done)
-                _collect(done, inputs, records, report, progress)
-        for group in list(pending):
-            flush(group)
-        while in_flight:
-            hand_over(*in_flight.pop(0))
-        for done in writing:
-            _collect(done, inputs, records, report, progress)
+            group = self.group_of(inputs[index], image)
+            self.pending.setdefault(group, []).append((index, image))
+            if len(self.pending[group]) >= self.capacity(group[0]):
+                self.flush(group)
+            for done in [w for w in self.writing if w.done()]:
+                self.writing.remove(done)
+                self.collect(done)
+        for group in list(self.pending):
+            self.flush(group)
+        while self.in_flight:
+            self.hand_over(*self.in_flight.pop(0))
+        for done in self.writing:
+            self.collect(done)
         if preparer is not None:
             preparer.shutdown(wait=False)
-    if progress:
-        progress.close()
-    ordered = [records[i] for i in sorted(records)]
-    if folder is None:
-        return ConvertResult(records=ordered, errors=errors)
-    rewritten = {folder.key(r) for r in ordered}
-    folder.rewrite([r for r in folder.records if folder.key(r) not in rewritten] + ordered)
-    return ConvertResult(records=ordered, errors=errors, notes=_folder_notes(folder))
 
 
 def write_manifest_file(out_dir, records) -> None:
