@@ -330,7 +330,7 @@ def campaign(n: int, seed: int = 0, log=print, full_every: int = FULL_EVERY, see
                     continue
                 break
             ran += 1
-            full = (index - first) % full_every == 0 and kind != "args"
+            full = full_every > 0 and (index - first) % full_every == 0 and kind != "args"
             fuzz_harness.CASE_SECONDS = FULL_SECONDS if full else CASE_SECONDS
             case.dry_run = not full
             argv = list(case.argv)
@@ -370,7 +370,8 @@ def main(argv=None) -> int:
     parser.add_argument("seed", type=int, nargs="?", default=0)
     parser.add_argument("--log", type=Path, help="progress and findings go here (default: stderr)")
     parser.add_argument("--full-every", type=int, default=FULL_EVERY,
-                        help="one case in this many runs the whole check (tiny training) instead of --dry-run")
+                        help="one case in this many runs the whole check (tiny training) instead of --dry-run, "
+                             "the first of a piece among them (0: none)")
     parser.add_argument("--seeds-dir", type=Path, help="keep (or reuse) the seed files here")
     parser.add_argument("--first", type=int, default=0, help="run cases FIRST..N-1 only")
     parser.add_argument("--stop-after", type=float, default=float("inf"), metavar="SECONDS",
