@@ -154,7 +154,7 @@ def test_fit_profile_from_gopro_dng_keeps_its_tags(tmp_path, shared_data):
     profile = load_profile(out)
     assert profile.info.calibration_illuminants == (3, 23)
     assert profile.cfa_string == "RGGB" and float(profile.white_level) == 16383
-    assert profile.illuminants.kind == "prior"   # one DNG: the camera-independent prior
+    assert "pooled (auto, 1 measured light" in profile.info.provenance   # one DNG: the pooled lights (issue 33)
     assert float(np.max(profile.noise.shot)) > 0
 
 

@@ -48,15 +48,17 @@ def test_noise_model_from_noise_profile_tags_by_iso():
     # the tag's O less the rounding to integer DN, which the simulation adds (1/12 DN^2)
     np.testing.assert_allclose(np.asarray(profile.noise.read[1]), [4e-7 - 1 / 12 / (4095 - 256) ** 2] * 4, rtol=1e-5)
     assert profile.noise.read_excludes_quantisation
-    assert profile.illuminants.kind == "prior"   # 3 lights: fewer than the kernel model needs (MIN_LIGHTS_FOR_KERNEL)
+    # 3 lights: fewer than the kernel model needs (MIN_LIGHTS_FOR_KERNEL): 'auto' takes the pooled lights
+    assert "pooled (auto" in profile.info.provenance
     assert profile.cfa_string == "GRBG"
 
 
-def test_one_dng_gives_the_prior_the_locus_stays_selectable_and_ten_lights_give_the_kernel_model():
+def test_one_dng_gives_the_pooled_lights_the_locus_stays_selectable_and_ten_lights_give_the_kernel_model():
     one = [info(as_shot_neutral=np.array([0.5, 1, 0.6]))]
-    assert fit_profile(one).illuminants.kind == "prior"
+    assert "pooled (auto, 1 measured light" in fit_profile(one).info.provenance
+    assert fit_profile(one, illuminant_model="prior").illuminants.kind == "prior"
     assert fit_profile(one, illuminant_model="locus").illuminants.kind == "locus"
     neutrals = [np.array([0.45 + 0.02 * k, 1, 0.75 - 0.015 * k + 0.01 * (k % 3)]) for k in range(10)]
     ten = fit_profile([info(as_shot_neutral=n) for n in neutrals])
     assert ten.illuminants.kind == "kernel" and "10 measured lights" in ten.info.provenance
-    assert fit_profile([info(as_shot_neutral=n) for n in neutrals[:9]]).illuminants.kind == "prior"
+    assert "pooled (auto" in fit_profile([info(as_shot_neutral=n) for n in neutrals[:9]]).info.provenance

@@ -94,15 +94,15 @@ def canon():
 
 
 @pytest.mark.slow
-def test_auto_takes_the_kernel_from_enough_lights_and_the_prior_without_any(canon):
+def test_auto_takes_the_kernel_from_enough_lights_and_the_pooled_lights_below(canon):
     no_light = ch.choose_illuminant_model(np.zeros((0, 2)), canon.colour)
-    assert no_light.model.kind == "prior" and no_light.lights == 0 and "0 measured lights" in no_light.reason
+    assert no_light.reason.startswith("pooled (auto") and no_light.lights == 0 and "0 measured lights" in no_light.reason
     lights = np.array([[0.46, 0.66], [0.48, 0.64], [0.52, 0.60], [0.62, 0.52], [0.45, 0.67], [0.75, 0.42],
                        [0.47, 0.65], [0.50, 0.62], [0.55, 0.57], [0.58, 0.55], [0.68, 0.47], [0.44, 0.68]])
     for count in (1, 2, 5, ch.MIN_LIGHTS_FOR_KERNEL - 1, 12):
         chosen = ch.choose_illuminant_model(lights[:count], canon.colour)
-        expected = "kernel" if count >= ch.MIN_LIGHTS_FOR_KERNEL else "prior"
-        assert chosen.model.kind == expected, chosen.reason
+        expected = "kernel (auto" if count >= ch.MIN_LIGHTS_FOR_KERNEL else "pooled (auto"
+        assert chosen.model.kind == "kernel" and chosen.reason.startswith(expected), chosen.reason
         assert chosen.lights == count and f"{count} measured light" in chosen.reason
         samples = samples_of(chosen.model, 2000)
         assert np.all(np.isfinite(samples)) and np.all(samples > 0)

@@ -18,6 +18,8 @@ from g2r_jax.profile.schema import load_profile
 
 
 def _preset_of(reason: str) -> str:
+    if reason.startswith("pooled (auto"):   # 'auto' below 10 lights: the pooled day lights, no night preset
+        return "day"
     found = re.findall(r"\((day|night|day_night) preset", reason)
     assert len(found) == 1, reason
     return found[0]

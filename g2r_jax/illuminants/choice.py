@@ -17,7 +17,7 @@ from g2r_jax.illuminants import kernel as _kernel
 
 PRIOR_KINDS = {"prior": "day", "prior-night": "night", "prior-day-night": "day_night"}
 KINDS = ("auto", "kernel", "pooled", "gaussian", "mixture", "locus", *PRIOR_KINDS)
-MIN_LIGHTS_FOR_KERNEL = 10     # 'auto': the kernel model from this many distinct measured lights, else the prior
+MIN_LIGHTS_FOR_KERNEL = 10     # 'auto': the kernel model from this many distinct measured lights, else 'pooled'
 LOCUS_CCT_RANGE = (2000.0, 20000.0)   # the camera's Planckian locus giving the kernels' directions
 MEASUREMENT = "docs validation/illuminant_models"
 PRESET_EVIDENCE = 3.0   # nats: a Bayes factor of e^3 ~ 20, "strong" (Kass & Raftery, JASA 90, 1995, sec. 3.2)
@@ -146,9 +146,9 @@ def choose_illuminant_model(chromaticities, colour_model, kind: str = "auto", se
     the lights' convex hull), 'mixture' (BIC-selected Gaussians and the hull), 'locus' (the
     calibration matrices' CCT locus, supplement S3), 'prior', 'prior-night', 'prior-day-night'
     (`illuminants.prior` with that preset) or 'auto': the kernel model from `MIN_LIGHTS_FOR_KERNEL`
-    distinct lights, else the prior (chosen by the downstream measurement of `MEASUREMENT`) with
-    the preset the lights favour (`_best_prior_preset`: day without lights); `seed`: the mixture's
-    EM initialisation. Prior lights the camera's matrices cannot carry are left out and counted
+    distinct lights, else 'pooled' (both chosen by the downstream measurement of `MEASUREMENT`),
+    or the prior with a night preset where the lights strongly favour one (`_best_prior_preset`);
+    `seed`: the mixture's EM initialisation. Prior lights the camera's matrices cannot carry are left out and counted
     in the reason (`prior.camera_prior`).
 
     **Returns:** an `IlluminantChoice`. Raises ValueError for an unknown kind, or for 'gaussian' or
@@ -165,8 +165,14 @@ def choose_illuminant_model(chromaticities, colour_model, kind: str = "auto", se
             model, words = fit_kernel_for_camera(points, colour_model, dtype)
             return IlluminantChoice(model, f"kernel (auto, {lights} >= {MIN_LIGHTS_FOR_KERNEL}, by the "
                                            f"downstream measurement in {MEASUREMENT}): {words}", n)
-        kind, why = "prior", (f"prior (auto, {lights} < {MIN_LIGHTS_FOR_KERNEL}, by the downstream "
-                              f"measurement in {MEASUREMENT})")
+        preset, mapped = _best_prior_preset(points, colour_model, dtype)
+        if preset == "day":
+            model, words = fit_pooled_for_camera(points, colour_model, dtype=dtype)
+            return IlluminantChoice(model, f"pooled (auto, {lights} < {MIN_LIGHTS_FOR_KERNEL}, by the downstream "
+                                           f"measurement in {MEASUREMENT}; the lights favour no night preset): "
+                                           f"{words}", n)
+        kind, why = "prior", (f"prior (auto, {lights} < {MIN_LIGHTS_FOR_KERNEL} strongly favouring the "
+                              f"{preset} preset, which the pooled day lights lack)")
     else:
         why = f"{kind} (asked for; {lights})"
     if kind == "locus":

@@ -7,7 +7,9 @@ pooling: the new camera's lights as a draw from the population of all cameras' l
 go to CIE xy through that camera's own DNG colour model (the DNG fixed point,
 `dng_model.camera_neutrals_to_xy`) and are stored as (mired, Duv x 1000) (`mired_duv`); into a
 camera they come through its colour model (`prior._camera_chromaticities`), and lights its
-matrices cannot carry (a non-positive or non-finite neutral) are left out and counted.
+matrices cannot carry (a non-positive or non-finite neutral) are left out and counted. A source
+whose D65 ColorMatrix is this camera's own (the same camera model) is left out too, wherever the
+model is fitted: none of a camera's own lights informs its own prior (leave-one-camera-out).
 
 The pooled model is the kernel model (`kernel.fit_kernel`, the NUS cameras' median bandwidths) of
 the carried lights, every source camera with the same total weight (one camera's 260 lights do not
@@ -44,6 +46,8 @@ from g2r_jax.runtime.x64 import enable_x64
 
 POOLED_FILE = "pooled_lights.json"
 _MIN_CHROMATICITY = 1e-3
+D65 = 21                 # EXIF LightSource code of the calibration illuminant whose matrix names a camera
+SAME_MATRIX = 1e-3       # largest difference of two unit-norm D65 ColorMatrices of one camera model
 
 
 class CarriedLights(NamedTuple):
@@ -58,7 +62,8 @@ class CarriedLights(NamedTuple):
 
 def load_pooled(path=None) -> dict:
     """{source camera: (N, 2) (mired, Duv x 1000)} of the shipped pool or the JSON at `path`;
-    ValueError naming the file for a malformed one."""
+    ValueError naming the file for a malformed one. Each source's D65 ColorMatrix is in
+    `load_pool_matrices`."""
     if path is None:
         text, source = resources.files("g2r_jax.illuminants").joinpath("data", POOLED_FILE).read_text(), POOLED_FILE
     else:
@@ -73,12 +78,34 @@ def load_pooled(path=None) -> dict:
     return pool
 
 
-def carried_lights(colour_model, exclude=(), pool=None) -> CarriedLights:
-    """The pool's lights (all source cameras but `exclude`) in this camera's (r/g, b/g)."""
+def load_pool_matrices(path=None) -> dict:
+    """{source camera: (3, 3) D65 ColorMatrix} of the shipped pool or the JSON at `path`."""
+    if path is None:
+        text = resources.files("g2r_jax.illuminants").joinpath("data", POOLED_FILE).read_text()
+    else:
+        text = Path(path).read_text()
+    return {name: np.asarray(m, np.float64).reshape(3, 3) for name, m in json.loads(text).get("d65_matrices", {}).items()}
+
+
+def same_camera_sources(colour_model, matrices) -> tuple:
+    """The sources whose D65 ColorMatrix (unit norm) is this camera's D65 one: its own lights."""
+    codes = list(colour_model.calibration_illuminants)
+    if D65 not in codes:
+        return ()
+    own = np.asarray(colour_model.color_matrix, np.float64)[codes.index(D65)]
+    own = own / np.linalg.norm(own)
+    return tuple(name for name, m in matrices.items() if np.max(np.abs(m / np.linalg.norm(m) - own)) < SAME_MATRIX)
+
+
+def carried_lights(colour_model, exclude=(), pool=None, matrices=None) -> CarriedLights:
+    """The pool's lights (all source cameras but `exclude` and this camera's own, by its D65
+    matrix: `same_camera_sources`) in this camera's (r/g, b/g)."""
     from g2r_jax.illuminants.prior import _camera_chromaticities
 
-    pool = load_pooled() if pool is None else pool
-    sources = tuple(name for name in sorted(pool) if name not in set(exclude))
+    if pool is None:
+        pool, matrices = load_pooled(), load_pool_matrices() if matrices is None else matrices
+    left_out = set(exclude) | set(same_camera_sources(colour_model, matrices or {}))
+    sources = tuple(name for name in sorted(pool) if name not in left_out)
     if not sources:
         raise ValueError(f"no pooled lights left after leaving out {sorted(exclude)}")
     points = np.concatenate([pool[name] for name in sources])
@@ -147,8 +174,10 @@ def build_pool(data_root) -> dict:
     root = Path(data_root)
     sets = list(_nus_sets(root))
     sets += [(m.name, m.neutrals, m.colour_model) for m in measured_sets(root) if m.population == "day"]
-    cameras, about = {}, {}
+    cameras, about, matrices = {}, {}, {}
     for name, neutrals, colour in sets:
+        codes = list(colour.calibration_illuminants)
+        matrices[name] = np.round(np.asarray(colour.color_matrix, np.float64)[codes.index(D65)], 6).reshape(-1).tolist()
         neutrals = neutrals / neutrals[:, 1:2]
         with enable_x64():
             xy, converged = _dng.camera_neutrals_to_xy(jnp.asarray(neutrals, jnp.float64), colour)
@@ -160,7 +189,7 @@ def build_pool(data_root) -> dict:
             "source": "; ".join(f"{k}: {v}" for k, v in about.items()) + " (NUS: ../shared/data/estimation/nus "
                       "with Adobe's A/D65 ColorMatrix pair; Canon EOS-1D/5D: Gehler-Shi real_illum_568.mat "
                       "with the D65 ColorMatrix of LibRaw's table)",
-            "cameras": cameras}
+            "cameras": cameras, "d65_matrices": matrices}
 
 
 def main(argv=None) -> int:
