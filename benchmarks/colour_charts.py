@@ -26,6 +26,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from g2r_jax.colour import charts as C  # noqa: E402
 from g2r_jax.colour import chart_fit as F  # noqa: E402
+from g2r_jax.pipeline import simulate_patches  # noqa: E402
 
 
 def run(charts_path, profile_path, progress=print) -> dict:
@@ -34,9 +35,9 @@ def run(charts_path, profile_path, progress=print) -> dict:
     charts = C.read_charts(charts_path)
     profile = load_profile(profile_path)
     rows = {}
-    rows["g2r_jax, Adobe D65 ColorMatrix"] = F.patch_errors(F.simulate_patches(profile, charts.illuminant), charts)
+    rows["g2r_jax, Adobe D65 ColorMatrix"] = F.patch_errors(simulate_patches(profile, charts.illuminant), charts)
     rows["published recipe, same matrix"] = F.patch_errors(
-        F.simulate_patches(profile, charts.illuminant, recipe="published"), charts)
+        simulate_patches(profile, charts.illuminant, recipe="published"), charts)
     cv = F.cross_validated_refit(profile, charts, C.folds_of(charts), progress=progress)
     rows["g2r_jax, refitted ColorMatrix pair (held-out)"] = cv["after"]
     no_transform = np.clip(C.chart_linear_srgb(), 0, None)[None] * charts.illuminant[:, None, :]

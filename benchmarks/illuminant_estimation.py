@@ -42,6 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from g2r_jax.colour import charts as _charts  # noqa: E402
 from g2r_jax.colour import conversions as _colour  # noqa: E402
 from g2r_jax.colour import chart_fit as colour_fit  # noqa: E402
+from g2r_jax.pipeline import simulate_patches  # noqa: E402
 from g2r_jax.downstream.upi import XYZ_TO_CAMERAS  # noqa: E402
 from g2r_jax.measure import angular_error_degrees  # noqa: E402
 
@@ -126,9 +127,9 @@ def run(charts_path, profile_path, *, train_per_fold=TRAIN_PER_FOLD, seed=0, pro
         refit_profile = colour_fit.with_colour(profile, refit, codes)
         training = {
             ROWS[0]: upi_charts(chart_linear, train_per_fold, rng),
-            ROWS[1]: (colour_fit.simulate_patches(profile, neutrals, chart_srgb, recipe="published"), neutrals),
-            ROWS[2]: (colour_fit.simulate_patches(profile, neutrals, chart_srgb), neutrals),
-            ROWS[3]: (colour_fit.simulate_patches(refit_profile, neutrals, chart_srgb), neutrals),
+            ROWS[1]: (simulate_patches(profile, neutrals, chart_srgb, recipe="published"), neutrals),
+            ROWS[2]: (simulate_patches(profile, neutrals, chart_srgb), neutrals),
+            ROWS[3]: (simulate_patches(refit_profile, neutrals, chart_srgb), neutrals),
             ROWS[4]: (train.patches, train.illuminant),
         }
         for row, (patches, illuminant) in training.items():

@@ -9,7 +9,7 @@ spatial correlation, the held-out gain of the extension, and a simulation check.
    on the normalised planes (BlackLevel 0, so raw DN 0 clips: clip_low = 0); the model is the
    file's NoiseProfile S x + O plus rounding (1/12 DN^2).
 2. Hold-out: the planes' 64 x 64 squares in a checkerboard; the extension (monotone level
-   function, correlation kernel: `noise_extension.fit_noise_extension`) is fitted on one half
+   function, correlation kernel: `profile.editing.fit_noise_extension`) is fitted on one half
    and judged on the other: mean |log(model / measured)| over the held-out bins, before
    (NoiseProfile) and after; mean |rho_model - rho_measured| at lags (0,1), (1,0), (1,1).
 3. Simulation: `unprocess` with the extended profile on dead-leaves scenes (ISO 100, noise on,
@@ -32,6 +32,7 @@ sys.path.insert(0, str(REPO))
 
 from g2r_jax import load_profile  # noqa: E402
 from g2r_jax.sensor.noise import estimation as ne  # noqa: E402
+from g2r_jax.profile.editing import fit_noise_extension  # noqa: E402
 from g2r_jax.sensor.noise import extension as nx  # noqa: E402
 from g2r_jax.sensor.noise.estimation import to_normalised_planes  # noqa: E402
 from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels  # noqa: E402
@@ -135,7 +136,7 @@ def main(argv=None):
     report["heldout"] = {}
     extended = {}
     for name, monotone in (("monotone", True), ("free", False)):
-        ext = nx.fit_noise_extension(fit_est, profile, correlation=fit_corr, monotone=monotone)
+        ext = fit_noise_extension(fit_est, profile, correlation=fit_corr, monotone=monotone)
         extended[name] = ext
         after = nx.predicted_variance(ext.noise, 100.0, test_est.signal) + quant
         kernel_rho = np.stack([nx.kernel_autocorrelation(k) for k in np.asarray(ext.noise.correlation_kernel)])

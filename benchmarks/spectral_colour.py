@@ -190,7 +190,7 @@ def section_cost(quick: bool, repeats: int):
     import jax
 
     import g2r_jax
-    from g2r_jax.colour.spectral import attach_spectral
+    from g2r_jax.profile.editing import attach_spectral
 
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from throughput import test_image

@@ -17,6 +17,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from g2r_jax import content as _content
 from g2r_jax import sensor as _sensor
@@ -311,3 +312,39 @@ def batch_conditions(keys, profile, *, neutral=None, iso=None, exposure_gain=Non
 def image_key(seed: int, index: int):
     """The PRNG key of the `index`-th image of a run with `seed`: order-independent batches."""
     return jax.random.fold_in(jax.random.PRNGKey(seed), index)
+
+
+def simulate_patches(profile, neutrals, chart_srgb=None, *, recipe: str = "dng", transfer: str = "srgb",
+                     seed: int = 0, noise: bool = False, batch: int = 256) -> np.ndarray:
+    """Per-channel patch means (N, 24, 3) of the mosaics `unprocess_batch` makes from a chart
+    image (sRGB-encoded `chart_srgb`, default `colour.charts.chart_srgb()`; `colour.chart_fit.
+    chart_image`) with each image's neutral, exposure gain 1, no sensor effects; black level
+    removed, in normalised units: the pipeline's side of `colour.chart_fit`'s chart scores."""
+    from g2r_jax.colour import charts as _charts
+    from g2r_jax.colour.chart_fit import CHART_TILE, chart_image
+
+    chart_srgb = _charts.chart_srgb() if chart_srgb is None else np.asarray(chart_srgb)
+    neutrals = np.asarray(neutrals, np.float32)
+    image = chart_image(chart_srgb)
+    h, w = image.shape[:2]
+    black = np.asarray(_sensor.per_position(profile.black_level, (h, w)))
+    span = float(profile.white_level) - black
+    colours = np.asarray(profile.cfa_pattern)[np.array([[0, 1], [2, 3]])]
+    colours = np.tile(colours, (h // 2, w // 2))
+    run = jax.jit(lambda keys, images, n: unprocess_batch(
+        keys, images, profile, neutral=n, exposure_gain=1.0, noise=noise, effects=False,
+        quantize=False, recipe=recipe, transfer=transfer)[0])
+    out = []
+    batch = min(batch, len(neutrals))
+    for start in range(0, len(neutrals), batch):
+        n = neutrals[start:start + batch]
+        pad = batch - len(n)
+        n_full = np.concatenate([n, np.repeat(n[-1:], pad, 0)]) if pad else n
+        keys = jax.vmap(lambda i: image_key(seed, i))(jnp.arange(start, start + batch))
+        mosaics = np.asarray(run(keys, jnp.asarray(np.repeat(image[None], batch, 0)), jnp.asarray(n_full)))
+        mosaics = ((mosaics - black) / span)[: len(n)]
+        tiles = mosaics.reshape(len(n), 4, CHART_TILE, 6, CHART_TILE)
+        tile_colours = colours.reshape(4, CHART_TILE, 6, CHART_TILE)
+        means = np.stack([np.nanmean(np.where(tile_colours == c, tiles, np.nan), axis=(2, 4)) for c in range(3)], -1)
+        out.append(means.reshape(len(n), 24, 3))
+    return np.concatenate(out)

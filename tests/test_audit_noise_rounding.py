@@ -22,7 +22,7 @@ from g2r_jax import sensor
 from g2r_jax.audit.causes import noise_model
 from g2r_jax.profile.schema import load_profile, save_profile
 from g2r_jax.sensor.noise import estimation
-from g2r_jax.sensor.noise.extension import fit_noise_extension
+from g2r_jax.profile.editing import fit_noise_extension
 
 LEVELS = np.array([0.003, 0.01, 0.03, 0.1])   # normalised signal of four flat bands
 BAND = 64   # plane rows per band

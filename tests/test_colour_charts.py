@@ -11,6 +11,7 @@ import pytest
 from g2r_jax.colour import charts as C
 from g2r_jax.measure import angular_error_degrees
 from g2r_jax.colour import chart_fit as F
+from g2r_jax.pipeline import simulate_patches
 from g2r_jax.audit import diagnose, synthetic
 from g2r_jax.colour.dng_model import DngColourModel
 from g2r_jax.profile.schema import load_profile, replace, save_profile
@@ -78,7 +79,7 @@ def test_closed_form_prediction_is_unprocess():
     neutrals = np.array([[0.45, 1, 0.75], [0.6, 1, 0.5], [0.35, 1, 0.9]])
     chart = C.chart_srgb()
     chart[18] = 0.7                      # an exactly neutral patch
-    simulated = F.simulate_patches(profile, neutrals, chart)
+    simulated = simulate_patches(profile, neutrals, chart)
     from g2r_jax.colour.conversions import srgb_to_linear
 
     charts = C.ChartSet(["a", "b", "c"], simulated, neutrals)

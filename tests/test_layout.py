@@ -75,11 +75,95 @@ def _reachable(graph, start: str) -> set[str]:
 
 
 def test_no_import_circles():
+    """Module or function level: `_imports` counts the imports inside functions too."""
     assert _cycle(import_graph()) is None, f"import circle: {' -> '.join(_cycle(import_graph()))}"
 
 
 def test_cycle_finder_finds_a_circle():
     assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+
+
+def test_imports_inside_functions_count(tmp_path):
+    path = tmp_path / "b.py"
+    path.write_text("import g2r_jax.c\n\ndef f():\n    from g2r_jax import a\n    from .d import e\n")
+    modules = {"g2r_jax.a": None, "g2r_jax.b": None, "g2r_jax.c": None, "g2r_jax.d": None}
+    assert _imports("g2r_jax.b", path, modules) == {"g2r_jax.a", "g2r_jax.c", "g2r_jax.d"}
+
+
+# The rooms from the bottom up (design.md, "The shape"; issue 35): a module imports only its own
+# room's modules and those of rooms below it. Rooms on one line are peers.
+LAYERS = (("io",), ("measure",), ("sensor",), ("colour",), ("illuminants",), ("content",), ("profile", "pipeline"),
+          ("batch",), ("audit",), ("downstream",), ("cli",))
+UTILITIES = ("runtime", "examples")   # any room may import these; they import none of the rooms
+TOP = "g2r_jax"                       # the public API: imports anything; imported as the audit's peer
+_TOP_LAYER = next(k for k, rooms in enumerate(LAYERS) if "audit" in rooms)   # it re-exports `diagnose`
+
+
+def layer_of(module: str) -> int | None:
+    """The layer index of a package module (-1 for the utilities), None for a room not in LAYERS."""
+    if module == TOP:
+        return _TOP_LAYER
+    room = module.split(".")[1]
+    if room in UTILITIES:
+        return -1
+    return next((k for k, rooms in enumerate(LAYERS) if room in rooms), None)
+
+
+def layer_violations(graph) -> list[str]:
+    """'importer -> imported' for every import that runs up the layers (or from an unplaced room)."""
+    found = []
+    for importer, targets in sorted(graph.items()):
+        if importer == TOP:
+            continue
+        own = layer_of(importer)
+        for target in sorted(targets):
+            above = layer_of(target)
+            if own is None or above is None or (own == -1 and above != -1) or above > own:
+                found.append(f"{importer} -> {target}")
+    return found
+
+
+def test_no_import_runs_up_the_layers():
+    violations = layer_violations(import_graph())
+    assert not violations, f"{len(violations)} import(s) against the layers {LAYERS}:\n" + "\n".join(violations)
+
+
+def test_layer_check_finds_an_upward_import():
+    graph = {"g2r_jax.sensor.x": {"g2r_jax.profile.schema", "g2r_jax.io.y"}, "g2r_jax.io.y": {"g2r_jax.runtime.z"},
+             "g2r_jax.runtime.z": {"g2r_jax.io.y"}, "g2r_jax.nowhere": set(), TOP: {"g2r_jax.cli.a"}}
+    assert layer_violations(graph) == ["g2r_jax.runtime.z -> g2r_jax.io.y", "g2r_jax.sensor.x -> g2r_jax.profile.schema"]
+    assert layer_of("g2r_jax.pipeline") == layer_of("g2r_jax.profile.fitting") > layer_of("g2r_jax.content.model")
+
+
+MAX_FUNCTION_LINES = 100
+
+
+def long_functions(paths, root: Path = PACKAGE.parent) -> list[str]:
+    """'path:line name (n lines)' for every function or method, nested ones included, over
+    MAX_FUNCTION_LINES lines from its def to its last line (end_lineno - lineno + 1)."""
+    found = []
+    for path in paths:
+        for node in ast.walk(ast.parse(Path(path).read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                length = node.end_lineno - node.lineno + 1
+                if length > MAX_FUNCTION_LINES:
+                    found.append(f"{Path(path).relative_to(root)}:{node.lineno} {node.name} ({length} lines)")
+    return found
+
+
+def test_no_function_over_100_lines():
+    found = long_functions(sorted(PACKAGE.rglob("*.py")))
+    assert not found, f"{len(found)} function(s) over {MAX_FUNCTION_LINES} lines:\n" + "\n".join(found)
+
+
+def test_long_function_finder_counts_lines(tmp_path):
+    lines = [f"x{k} = {k}" for k in range(MAX_FUNCTION_LINES - 1)]
+    body = lambda indent: "\n".join(indent + line for line in lines)
+    path = tmp_path / "m.py"
+    path.write_text(f"def fits():\n{body('    ')}\n\n\nclass C:\n    def too_long(self):\n{body(' ' * 8)}\n"
+                    "        return 1\n")
+    too_long_at = 1 + len(lines) + 3 + 1   # fits, its body, two blank lines and the class line
+    assert long_functions([path], tmp_path) == [f"m.py:{too_long_at} too_long ({MAX_FUNCTION_LINES + 1} lines)"]
 
 
 def test_profile_fitting_and_conversion_do_not_import_the_audit():

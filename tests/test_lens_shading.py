@@ -1,4 +1,4 @@
-"""DNG opcode lists (g2r_jax.io.opcodes) and lens-shading gains (g2r_jax.lens_shading).
+"""DNG opcode lists (g2r_jax.io.opcodes) and lens-shading gains (g2r_jax.sensor.shading).
 
 Gains are checked against closed forms: bilinear interpolation reproduces a + b v + c h + d v h
 exactly inside the map (DNG spec 1.6 ch. 7 'GainMap'), FixVignetteRadial is 1 + k0 r^2 + ...

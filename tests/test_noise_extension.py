@@ -15,6 +15,7 @@ from g2r_jax import sensor
 from g2r_jax.audit import scenes, synthetic
 from g2r_jax.sensor.noise.estimation import to_normalised_planes
 from g2r_jax.pipeline import unprocess, unprocess_batch
+from g2r_jax.profile.editing import fit_noise_extension
 
 KERNEL = np.array([[0.0, 0.3, 0.0], [0.3, 1.0, 0.3], [0.0, 0.3, 0.0]])
 
@@ -140,7 +141,7 @@ def test_fit_recovers_injected_level_function_and_kernel():
     clip_low = -256.0 / (4095.0 - 256.0)
     estimate = ne.estimate_noise_level_function(planes, clip_low=clip_low, n_bins=12)
     correlation = ne.estimate_noise_correlation(planes, clip_low=clip_low, n_bins=12)
-    fitted = nx.fit_noise_extension(estimate, base, correlation=correlation, iso=100.0)
+    fitted = fit_noise_extension(estimate, base, correlation=correlation, iso=100.0)
     ok = estimate.valid()
     signal = np.where(ok, estimate.signal, 0.0)
     predicted = nx.predicted_variance(fitted.noise, 100.0, signal)
@@ -203,7 +204,7 @@ def test_gopro_frame_extension_has_a_heldout_gain(shared_data):
     ratio = before / test_est.variance
     assert np.nanmedian(ratio[ok & (test_est.signal > 0.15)]) > 2.5
     assert np.nanmedian(np.abs(np.log(ratio[ok & (test_est.signal < 0.05)]))) < 0.3
-    extended = nx.fit_noise_extension(fit_est, profile, correlation=fit_corr)
+    extended = fit_noise_extension(fit_est, profile, correlation=fit_corr)
     after = nx.predicted_variance(extended.noise, 100.0, test_est.signal) + quant
     gain_before = np.mean(np.abs(np.log(before[ok] / test_est.variance[ok])))
     gain_after = np.mean(np.abs(np.log(after[ok] / test_est.variance[ok])))

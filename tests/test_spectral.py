@@ -15,7 +15,8 @@ from g2r_jax.io.dng_info import DngError
 from g2r_jax.io.sensitivities import read_sensitivities
 from g2r_jax.profile.checks import ProfileError
 from g2r_jax.profile.schema import profile_from_dict, profile_to_dict
-from g2r_jax.colour.spectral import accuracy, attach_spectral, tables
+from g2r_jax.colour.spectral import accuracy, tables
+from g2r_jax.profile.editing import attach_spectral
 from g2r_jax.colour.spectral.illuminant_spectra import illuminant_spectrum, solve_filter
 
 CANON_600D_JSON = "spectral/rawtoaces/camera/Canon_EOS_600D_380_780_5.json"

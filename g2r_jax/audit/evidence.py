@@ -8,7 +8,7 @@ compact (4, n * TILE, TILE) stack that the estimators read like any plane (block
 tile border), and at most `MAX_TILES` tiles per half are used, chosen evenly over the image, so a
 12-MP file costs about as much as a 2-MP one.
 
-The noise level function per CFA position comes from `g2r_jax.noise_estimation` (Foi et al.
+The noise level function per CFA position comes from `g2r_jax.sensor.noise.estimation` (Foi et al.
 2008's flat-block method with bootstrap intervals) when that module is present, else from
 `_block_nlf` below, a smaller version of the same method (white noise only).
 """

@@ -196,7 +196,7 @@ def simulated_charts(truth: SensorProfile, n: int, seed: int, noise: float = 0.0
     import jax
 
     from g2r_jax.colour import charts as _charts
-    from g2r_jax.colour.chart_fit import simulate_patches
+    from g2r_jax.pipeline import simulate_patches
 
     rng = np.random.default_rng(seed)
     neutrals = np.asarray(_illuminants.sample_neutrals(jax.random.PRNGKey(seed), truth.illuminants, n), np.float64)

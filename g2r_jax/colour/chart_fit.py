@@ -7,7 +7,8 @@ surface's linear sRGB c (D65-referred) goes through `unprocess` with the image's
 
 (`unprocess.matrix_srgb_to_white_balanced_camera`; xy(n) is the DNG neutral -> white fixed
 point). `predict_patches` is that closed form, vmapped over images (checked against
-`unprocess_batch` in the tests); `simulate_patches` runs `unprocess_batch` itself on a chart image.
+`unprocess_batch` in the tests); `g2r_jax.pipeline.simulate_patches` runs `unprocess_batch` itself
+on a chart image (`chart_image`).
 
 **Refit.** `refit_colour_matrices` fits a ColorMatrix pair (CalibrationIlluminant 17 / 21:
 Standard Light A / D65, interpolated in mired as the DNG specification does) by Levenberg-
@@ -81,41 +82,6 @@ def chart_image(chart_srgb) -> np.ndarray:
     """A (4T, 6T, 3) image of the 24 patches in chart order (6 columns x 4 rows), T = CHART_TILE."""
     patches = np.asarray(chart_srgb, np.float32).reshape(4, 6, 3)
     return np.repeat(np.repeat(patches, CHART_TILE, axis=0), CHART_TILE, axis=1)
-
-
-def simulate_patches(profile, neutrals, chart_srgb=None, *, recipe: str = "dng", transfer: str = "srgb",
-                     seed: int = 0, noise: bool = False, batch: int = 256) -> np.ndarray:
-    """Per-channel patch means (N, 24, 3) of the mosaics `unprocess_batch` makes from a chart
-    image (sRGB-encoded `chart_srgb`, default `charts.chart_srgb()`) with each image's neutral,
-    exposure gain 1, no sensor effects; black level removed, in normalised units."""
-    from g2r_jax.sensor import per_position
-    from g2r_jax.pipeline import image_key, unprocess_batch
-
-    chart_srgb = _charts.chart_srgb() if chart_srgb is None else np.asarray(chart_srgb)
-    neutrals = np.asarray(neutrals, np.float32)
-    image = chart_image(chart_srgb)
-    h, w = image.shape[:2]
-    black = np.asarray(per_position(profile.black_level, (h, w)))
-    span = float(profile.white_level) - black
-    colours = np.asarray(profile.cfa_pattern)[np.array([[0, 1], [2, 3]])]
-    colours = np.tile(colours, (h // 2, w // 2))
-    run = jax.jit(lambda keys, images, n: unprocess_batch(
-        keys, images, profile, neutral=n, exposure_gain=1.0, noise=noise, effects=False,
-        quantize=False, recipe=recipe, transfer=transfer)[0])
-    out = []
-    batch = min(batch, len(neutrals))
-    for start in range(0, len(neutrals), batch):
-        n = neutrals[start:start + batch]
-        pad = batch - len(n)
-        n_full = np.concatenate([n, np.repeat(n[-1:], pad, 0)]) if pad else n
-        keys = jax.vmap(lambda i: image_key(seed, i))(jnp.arange(start, start + batch))
-        mosaics = np.asarray(run(keys, jnp.asarray(np.repeat(image[None], batch, 0)), jnp.asarray(n_full)))
-        mosaics = ((mosaics - black) / span)[: len(n)]
-        tiles = mosaics.reshape(len(n), 4, CHART_TILE, 6, CHART_TILE)
-        tile_colours = colours.reshape(4, CHART_TILE, 6, CHART_TILE)
-        means = np.stack([np.nanmean(np.where(tile_colours == c, tiles, np.nan), axis=(2, 4)) for c in range(3)], -1)
-        out.append(means.reshape(len(n), 24, 3))
-    return np.concatenate(out)
 
 
 # ------------------------------------------------------------------------------------- scoring

@@ -117,6 +117,21 @@ def check_document(document, source: str = "<profile>") -> None:
     c = _Check(source)
     if not isinstance(document, dict):
         c.fail("document", f"expected a JSON object, got {type(document).__name__}")
+    _check_descriptions(c, document)
+    black, white = _check_levels(c, document)
+    _check_colour(c, c.obj(document.get("colour"), "colour", optional=False))
+    _check_illuminants(c, c.obj(document.get("illuminants"), "illuminants", optional=False))
+    exposure = c.obj(document.get("exposure"), "exposure")
+    c.numbers(exposure.get("log2_mean"), "exposure.log2_mean", low=-20, high=20, optional=True)
+    c.numbers(exposure.get("log2_std"), "exposure.log2_std", low=0, high=10, optional=True)
+    noise = c.obj(document.get("noise"), "noise")
+    if noise:
+        _check_noise(c, noise, black, white)
+    _check_effects(c, c.obj(document.get("effects"), "effects"), black, white)
+
+
+def _check_descriptions(c: _Check, document: dict) -> None:
+    """Names, provenance, camera and opcode lists: texts (the opcode lists hexadecimal bytes)."""
     for key in ("name", "cfa_pattern"):
         c.text(document.get(key), key)
     provenance = document.get("provenance")
@@ -137,6 +152,9 @@ def check_document(document, source: str = "<profile>") -> None:
         except ValueError:
             c.fail(f"opcode_lists.{key}", "not hexadecimal bytes")
 
+
+def _check_levels(c: _Check, document: dict):
+    """(black (array), white (float)) after checking their order and range, and the baseline exposure."""
     black = c.numbers(document.get("black_level"), "black_level", low=0.0)
     white = c.numbers(document.get("white_level"), "white_level", low=0.0, high=MAX_LEVEL, low_open=True)
     if white.ndim != 0:
@@ -148,8 +166,10 @@ def check_document(document, source: str = "<profile>") -> None:
         c.fail("white_level", f"{white:g} leaves only {white - np.max(black):g} DN above the black level")
     c.numbers(document.get("baseline_exposure"), "baseline_exposure", low=-MAX_BASELINE_EV, high=MAX_BASELINE_EV,
               optional=True)
+    return black, white
 
-    colour = c.obj(document.get("colour"), "colour", optional=False)
+
+def _check_colour(c: _Check, colour: dict) -> None:
     codes = colour.get("calibration_illuminants")
     if not isinstance(codes, list) or not codes or \
             any(isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= 255 for v in codes):
@@ -159,7 +179,8 @@ def check_document(document, source: str = "<profile>") -> None:
     c.matrices(colour.get("forward_matrices"), "colour.forward_matrices", kind="forward")
     c.numbers(colour.get("analog_balance"), "colour.analog_balance", low=1 / MAX_GAIN, high=MAX_GAIN, optional=True)
 
-    ill = c.obj(document.get("illuminants"), "illuminants", optional=False)
+
+def _check_illuminants(c: _Check, ill: dict) -> None:
     c.text(ill.get("kind"), "illuminants.kind")
     weights = c.numbers(ill.get("weights"), "illuminants.weights", low=0.0, high=1e6, low_open=True)
     if weights.size == 0:
@@ -169,37 +190,34 @@ def check_document(document, source: str = "<profile>") -> None:
     c.numbers(ill.get("covariances"), "illuminants.covariances", low=-1e3, high=1e3)
     c.numbers(ill.get("hull"), "illuminants.hull", low=-1e6, high=1e6, optional=True)
 
-    exposure = c.obj(document.get("exposure"), "exposure")
-    c.numbers(exposure.get("log2_mean"), "exposure.log2_mean", low=-20, high=20, optional=True)
-    c.numbers(exposure.get("log2_std"), "exposure.log2_std", low=0, high=10, optional=True)
 
-    noise = c.obj(document.get("noise"), "noise")
-    if noise:
-        # an ISO below 1 is no camera's setting, and 1e-320 is 0 in float32 (the simulation's log ISO: NaN)
-        c.numbers(noise.get("iso"), "noise.iso", low=MIN_ISO, high=MAX_ISO)
-        c.numbers(noise.get("shot"), "noise.shot", low=0, high=1)
-        read = c.numbers(noise.get("read"), "noise.read", low=0, high=1)
-        if read.size and black.size:   # a DNG's NoiseProfile O (read plus the 1/12 DN^2 rounding) must stay <= 1
-            rounding = 1 / 12 / (white - float(np.max(black))) ** 2
-            if float(np.max(read)) + rounding > 1:
-                c.fail("noise.read", f"{float(np.max(read)):g} plus the rounding variance {rounding:.3g} exceeds 1 "
-                                     "(normalised units)")
-        iso_range = c.numbers(noise.get("iso_range"), "noise.iso_range", low=MIN_ISO, high=MAX_ISO, optional=True)
-        if iso_range is not None and iso_range.size == 2 and iso_range.ravel()[0] > iso_range.ravel()[1]:
-            c.fail("noise.iso_range", "expected [lowest, highest]")
-        level = c.obj(noise.get("level_function"), "noise.level_function")
-        if level:   # the noise shape of g2r_jax.noise_shape; shapes are checked by the loader
-            c.numbers(level.get("knots"), "noise.level_function.knots", low=-1, high=2)
-            c.numbers(level.get("variance"), "noise.level_function.variance", low=0, high=1)
-        c.numbers(noise.get("correlation_kernel"), "noise.correlation_kernel", low=-100, high=100, optional=True)
-        levels = c.obj(noise.get("correlation_levels"), "noise.correlation_levels")
-        if levels:
-            c.numbers(levels.get("knots"), "noise.correlation_levels.knots", low=-1, high=2)
-            c.numbers(levels.get("weight"), "noise.correlation_levels.weight", low=0, high=1)
-        if not isinstance(noise.get("read_excludes_quantisation", False), bool):
-            c.fail("noise.read_excludes_quantisation", "expected true or false")
+def _check_noise(c: _Check, noise: dict, black, white: float) -> None:
+    # an ISO below 1 is no camera's setting, and 1e-320 is 0 in float32 (the simulation's log ISO: NaN)
+    c.numbers(noise.get("iso"), "noise.iso", low=MIN_ISO, high=MAX_ISO)
+    c.numbers(noise.get("shot"), "noise.shot", low=0, high=1)
+    read = c.numbers(noise.get("read"), "noise.read", low=0, high=1)
+    if read.size and black.size:   # a DNG's NoiseProfile O (read plus the 1/12 DN^2 rounding) must stay <= 1
+        rounding = 1 / 12 / (white - float(np.max(black))) ** 2
+        if float(np.max(read)) + rounding > 1:
+            c.fail("noise.read", f"{float(np.max(read)):g} plus the rounding variance {rounding:.3g} exceeds 1 "
+                                 "(normalised units)")
+    iso_range = c.numbers(noise.get("iso_range"), "noise.iso_range", low=MIN_ISO, high=MAX_ISO, optional=True)
+    if iso_range is not None and iso_range.size == 2 and iso_range.ravel()[0] > iso_range.ravel()[1]:
+        c.fail("noise.iso_range", "expected [lowest, highest]")
+    level = c.obj(noise.get("level_function"), "noise.level_function")
+    if level:   # the noise shape of g2r_jax.sensor.noise.shape; shapes are checked by the loader
+        c.numbers(level.get("knots"), "noise.level_function.knots", low=-1, high=2)
+        c.numbers(level.get("variance"), "noise.level_function.variance", low=0, high=1)
+    c.numbers(noise.get("correlation_kernel"), "noise.correlation_kernel", low=-100, high=100, optional=True)
+    levels = c.obj(noise.get("correlation_levels"), "noise.correlation_levels")
+    if levels:
+        c.numbers(levels.get("knots"), "noise.correlation_levels.knots", low=-1, high=2)
+        c.numbers(levels.get("weight"), "noise.correlation_levels.weight", low=0, high=1)
+    if not isinstance(noise.get("read_excludes_quantisation", False), bool):
+        c.fail("noise.read_excludes_quantisation", "expected true or false")
 
-    effects = c.obj(document.get("effects"), "effects")
+
+def _check_effects(c: _Check, effects: dict, black, white: float) -> None:
     pedestal = c.numbers(effects.get("black_pedestal"), "effects.black_pedestal", low=-MAX_LEVEL, high=MAX_LEVEL,
                          optional=True)
     if pedestal is not None and pedestal.size and black.size and pedestal.shape == black.shape:

@@ -200,7 +200,7 @@ def noise_from_infos(infos, cfa_pattern, dtype=np.float32) -> _sensor.NoiseModel
     NoiseProfile holds (S, O) per colour plane (or one pair for all), in normalised units
     (DNG spec 1.6, NoiseProfile): variance = S x + O; mapped to tile positions by the CFA.
     Files without a usable NoiseProfile (missing, all zero, a term <= 0) get their noise
-    measured from their own pixels, with a warning (`g2r_jax.noise_fallback`).
+    measured from their own pixels, with a warning (`g2r_jax.sensor.noise.fallback`).
     """
     from g2r_jax.sensor.noise.fallback import noise_and_source
 

@@ -66,7 +66,7 @@ class SensorProfile(eqx.Module):
     noise: _sensor.NoiseModel
     effects: _sensor.SensorEffects
     info: ProfileInfo = eqx.field(static=True, default=ProfileInfo())
-    spectral: Any = None                   # optional g2r_jax.spectral.SpectralModel (sensitivities, lamps)
+    spectral: Any = None                   # optional g2r_jax.colour.spectral.SpectralModel (sensitivities, lamps)
     content: Any = None                    # optional g2r_jax.content.ContentModel (the CG scenes' adaptation)
 
     @property
@@ -100,7 +100,7 @@ def _list(a) -> Any:
 
 
 def _noise_to_dict(noise: _sensor.NoiseModel) -> dict:
-    """The `noise` object; the optional shape (`g2r_jax.noise_shape`) only when present."""
+    """The `noise` object; the optional shape (`g2r_jax.sensor.noise.shape`) only when present."""
     document = {"iso": _list(noise.iso), "shot": _list(noise.shot), "read": _list(noise.read),
                 "iso_range": _list(noise.iso_range)}
     if noise.level_variance is not None:
@@ -243,7 +243,33 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
 
     check_document(document, source)   # types and physical ranges (the same check before saving)
     as_j = lambda a: device_array(a, dtype)
+    colour, cfa = _colour_from_dict(r, document, dtype)
+    black = r.array(r.get(document, "black_level", "black_level"), "black_level", (4,))
+    white = float(r.array(r.get(document, "white_level", "white_level"), "white_level", (), positive=True))
+    if np.any(black >= white):
+        r.fail("black_level", f"must be below white_level {white}")
+    illuminant_model = _illuminants_from_dict(r, r.get(document, "illuminants", "illuminants"), dtype)
+    exposure_doc = r.get(document, "exposure", "exposure", optional=True, default={"log2_mean": 0, "log2_std": 0})
+    exposure = _sensor.ExposureModel(
+        log2_mean=as_j(r.array(r.get(exposure_doc, "log2_mean", "exposure"), "exposure.log2_mean", ())),
+        log2_std=as_j(r.array(r.get(exposure_doc, "log2_std", "exposure"), "exposure.log2_std", ())))
+    noise_doc = r.get(document, "noise", "noise", optional=True)
+    noise = default_noise(dtype) if noise_doc is None else _noise_from_dict(r, noise_doc, dtype)
+    effects = _effects_from_dict(r, r.get(document, "effects", "effects", optional=True, default={}), dtype)
+    info = _info_from_dict(r, document, source, colour)
+    spectral_doc = r.get(document, "spectral", "spectral", optional=True)
+    spectral = None if spectral_doc is None else _spectral_model.spectral_from_dict(spectral_doc, r.fail, dtype)
+    content_doc = r.get(document, "content", "content", optional=True)
+    content = None if content_doc is None else _content.content_from_dict(content_doc, r.fail)
+    return SensorProfile(
+        cfa_pattern=device_array(cfa, jnp.int32), black_level=as_j(black), white_level=as_j(white),
+        baseline_exposure=as_j(float(document.get("baseline_exposure", 0.0))), colour=colour,
+        illuminants=illuminant_model, exposure=exposure, noise=noise, effects=effects, info=info,
+        spectral=spectral, content=content)
 
+
+def _colour_from_dict(r, document: dict, dtype):
+    """(DngColourModel, CFA pattern (4,)) of a profile document's `colour` and `cfa_pattern`."""
     colour_doc = r.get(document, "colour", "colour")
     codes = r.get(colour_doc, "calibration_illuminants", "colour")
     if not isinstance(codes, list) or len(codes) not in (1, 2, 3):
@@ -267,13 +293,10 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
         cfa = parse_cfa(r.get(document, "cfa_pattern", "cfa_pattern"))
     except ValueError as error:
         r.fail("colour" if "CFA" not in str(error) else "cfa_pattern", str(error))
+    return colour, cfa
 
-    black = r.array(r.get(document, "black_level", "black_level"), "black_level", (4,))
-    white = float(r.array(r.get(document, "white_level", "white_level"), "white_level", (), positive=True))
-    if np.any(black >= white):
-        r.fail("black_level", f"must be below white_level {white}")
 
-    ill = r.get(document, "illuminants", "illuminants")
+def _illuminants_from_dict(r, ill: dict, dtype) -> _illuminants.IlluminantModel:
     kind = r.get(ill, "kind", "illuminants")
     if kind not in ("gaussian", "mixture", "locus", "prior", "kernel"):
         r.fail("illuminants.kind", f"unknown kind {kind!r}")
@@ -285,35 +308,31 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
         r.fail("illuminants.covariances", "not positive semi-definite")
     hull = r.get(ill, "hull", "illuminants", optional=True)
     hull = None if hull is None else r.array(hull, "illuminants.hull", (None, 3))
-    illuminant_model = _illuminants._model(weights, means, covariances, hull, kind, hull is not None, dtype)
+    return _illuminants._model(weights, means, covariances, hull, kind, hull is not None, dtype)
 
-    exposure_doc = r.get(document, "exposure", "exposure", optional=True, default={"log2_mean": 0, "log2_std": 0})
-    exposure = _sensor.ExposureModel(
-        log2_mean=as_j(r.array(r.get(exposure_doc, "log2_mean", "exposure"), "exposure.log2_mean", ())),
-        log2_std=as_j(r.array(r.get(exposure_doc, "log2_std", "exposure"), "exposure.log2_std", ())))
 
-    noise_doc = r.get(document, "noise", "noise", optional=True)
-    if noise_doc is None:
-        noise = default_noise(dtype)
-    else:
-        iso = r.array(r.get(noise_doc, "iso", "noise"), "noise.iso", (None,), positive=True)
-        if np.any(np.diff(iso) <= 0):
-            r.fail("noise.iso", "must be strictly ascending")
-        noise = _sensor.NoiseModel(
-            iso=as_j(iso),
-            shot=as_j(r.array(r.get(noise_doc, "shot", "noise"), "noise.shot", (len(iso), 4))),
-            read=as_j(r.array(r.get(noise_doc, "read", "noise"), "noise.read", (len(iso), 4))),
-            iso_range=as_j(r.array(r.get(noise_doc, "iso_range", "noise", optional=True,
-                                         default=[iso.min(), iso.max()]), "noise.iso_range", (2,), positive=True)),
-            read_excludes_quantisation=bool(noise_doc.get("read_excludes_quantisation", False)),
-            **{k: as_j(v) for k, v in _noise_shape_from_dict(r, noise_doc, len(iso)).items()})
+def _noise_from_dict(r, noise_doc: dict, dtype) -> _sensor.NoiseModel:
+    as_j = lambda a: device_array(a, dtype)
+    iso = r.array(r.get(noise_doc, "iso", "noise"), "noise.iso", (None,), positive=True)
+    if np.any(np.diff(iso) <= 0):
+        r.fail("noise.iso", "must be strictly ascending")
+    return _sensor.NoiseModel(
+        iso=as_j(iso),
+        shot=as_j(r.array(r.get(noise_doc, "shot", "noise"), "noise.shot", (len(iso), 4))),
+        read=as_j(r.array(r.get(noise_doc, "read", "noise"), "noise.read", (len(iso), 4))),
+        iso_range=as_j(r.array(r.get(noise_doc, "iso_range", "noise", optional=True,
+                                     default=[iso.min(), iso.max()]), "noise.iso_range", (2,), positive=True)),
+        read_excludes_quantisation=bool(noise_doc.get("read_excludes_quantisation", False)),
+        **{k: as_j(v) for k, v in _noise_shape_from_dict(r, noise_doc, len(iso)).items()})
 
-    effects_doc = r.get(document, "effects", "effects", optional=True, default={})
+
+def _effects_from_dict(r, effects_doc: dict, dtype) -> _sensor.SensorEffects:
+    as_j = lambda a: device_array(a, dtype)
     get_effect = lambda key, shape: r.array(r.get(effects_doc, key, "effects", optional=True, default=_EFFECT_DEFAULTS[key]),
                                             f"effects.{key}", shape)
     defects = r.get(effects_doc, "defects", "effects", optional=True, default=[])
     defects = r.array(defects, "effects.defects", (None, 3)) if len(defects) else np.zeros((0, 3))
-    effects = _sensor.SensorEffects(
+    return _sensor.SensorEffects(
         black_pedestal=as_j(get_effect("black_pedestal", (4,))),
         clip_level=as_j(get_effect("clip_level", ())),
         channel_gain=as_j(get_effect("channel_gain", (4,))),
@@ -324,25 +343,18 @@ def profile_from_dict(document: dict, source: str = "<profile>", dtype=np.float3
         row_noise_std=as_j(get_effect("row_noise_std", ())),
         column_noise_std=as_j(get_effect("column_noise_std", ())))
 
+
+def _info_from_dict(r, document: dict, source: str, colour: DngColourModel) -> ProfileInfo:
     camera = r.get(document, "camera", "camera", optional=True, default={})
     opcode_lists = r.get(document, "opcode_lists", "opcode_lists", optional=True, default={})
     provenance, provenance_parts = _provenance.split_provenance(document.get("provenance"))
-    info = ProfileInfo(
+    return ProfileInfo(
         name=str(document.get("name", Path(source).stem)),
         unique_camera_model=str(camera.get("unique_camera_model", "g2r_jax camera")),
         make=str(camera.get("make", "")), model=str(camera.get("model", "")),
         calibration_illuminants=colour.calibration_illuminants,   # the model's order
         provenance=provenance, provenance_parts=provenance_parts,
         opcode_lists=tuple(sorted((str(k), str(v)) for k, v in opcode_lists.items())))
-    spectral_doc = r.get(document, "spectral", "spectral", optional=True)
-    spectral = None if spectral_doc is None else _spectral_model.spectral_from_dict(spectral_doc, r.fail, dtype)
-    content_doc = r.get(document, "content", "content", optional=True)
-    content = None if content_doc is None else _content.content_from_dict(content_doc, r.fail)
-    return SensorProfile(
-        cfa_pattern=device_array(cfa, jnp.int32), black_level=as_j(black), white_level=as_j(white),
-        baseline_exposure=as_j(float(document.get("baseline_exposure", 0.0))), colour=colour,
-        illuminants=illuminant_model, exposure=exposure, noise=noise, effects=effects, info=info,
-        spectral=spectral, content=content)
 
 
 def load_profile(name_or_path, dtype=np.float32) -> SensorProfile:

@@ -1,7 +1,7 @@
 """The sensor: what happens to the light after the colour filters, in the order light meets it.
 
 `exposure` (the global gain per image), `effects` (pedestal, early clipping, channel gains, radial
-shading, defects, banding, levels and quantisation), `readout` (the readout stage: noise, banding,
+shading, defects, banding, levels and quantisation), `readout_stage` (`readout`: noise, banding,
 levels and quantisation in one public function), `noise` (the noise model, its counter-based
 stream, its shape, estimation from pixels, the fallback and the audit's extension), `shading`
 (DNG lens-shading opcodes), `layout` (the CFA tile and its planes).
@@ -25,7 +25,7 @@ from g2r_jax.sensor.layout import (
     to_planes)
 from g2r_jax.sensor.noise.model import NoiseModel, add_noise, noise_level_at, noise_parameters, sample_iso
 from g2r_jax.sensor.noise.stream import standard_normal, standard_normal_planes
-from g2r_jax.sensor.readout import ReadoutNoise, banding_effects, noise_at_iso, readout
+from g2r_jax.sensor.readout_stage import ReadoutNoise, banding_effects, noise_at_iso, readout
 
 __all__ = [
     "ExposureModel", "NoiseModel", "ReadoutNoise", "SensorEffects", "add_noise", "apply_optical_effects", "apply_readout_effects",

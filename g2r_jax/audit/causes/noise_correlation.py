@@ -6,7 +6,7 @@ tested over files (or, for few files, against the spread of simulated ones).
 
 Extension: a 3 x 3 correlation kernel per CFA position (`NoiseModel.correlation_kernel`).
 - Large files (their own noise evidence, `stats.LARGE_BLOCKS`): the kernel and its share by
-  signal level (`correlation_knots`, `correlation_weight`; `noise_extension.fit_correlation_by_level`)
+  signal level (`correlation_knots`, `correlation_weight`; `sensor.noise.extension.fit_correlation_by_level`)
   fitted on the lag statistics of half A of the largest file's tiles (measured with its noise
   level function), so that noise smoothed only above some level (a phone or a lossy raw codec
   that denoises there) is simulated white below it. Held-out: the RMS, over the signal bins of

@@ -16,7 +16,7 @@ threshold and some bin deviates by more than `closed_form_tolerance` in log vari
 standard errors. One file is enough: its thousands of blocks give the intervals.
 
 Extension (large files): a noise level function per CFA position (`NoiseModel.level_knots`,
-`level_variance`), fitted on half A of the tiles by `noise_extension.fit_noise_extension`;
+`level_variance`), fitted on half A of the tiles by `profile.editing.fit_noise_extension`;
 held-out: the RMS of L on half B of held-out files (or of the one file) before and after,
 closed form. Small files (fewer than LARGE_BLOCKS blocks a plane): the neighbour-pair NLF
 (`stats.noise_level_function`) tested over files against simulated files, extension: scale
@@ -53,7 +53,7 @@ def noise_prediction(profile, iso: float, level):
 
 def model_variance(profile, f, signal) -> np.ndarray:
     """Variance the profile predicts for file `f` at `signal` (4, B): its noise model (with the
-    level-function extension where it has one, `noise_extension.predicted_variance`) + rounding
+    level-function extension where it has one, `sensor.noise.extension.predicted_variance`) + rounding
     + its banding (row and column offsets add their variance to every pixel, so once `banding` is
     explained away its variance is not reported again as a noise-model discrepancy)."""
     from g2r_jax.sensor.noise.extension import predicted_variance
@@ -290,10 +290,10 @@ def fit_scales(files, profile, half: str = "A", bias=None):
 
 def fit_level_function(files, profile) -> dict:
     """The noise level function per CFA position fitted to half A of the largest file's tiles
-    (`noise_extension.fit_noise_extension`: piecewise linear in the signal, free in shape, since
+    (`profile.editing.fit_noise_extension`: piecewise linear in the signal, free in shape, since
     lossy raw compression makes real level functions fall in places), as JSON-ready params; the
     profile's other ISO rows get the same shape scaled by their shot x + read."""
-    from g2r_jax.sensor.noise.extension import fit_noise_extension
+    from g2r_jax.profile.editing import fit_noise_extension
 
     f = max(files, key=lambda f: f["blocks"])
     half = f["nlf"]["A"]

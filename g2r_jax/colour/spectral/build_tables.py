@@ -1,6 +1,6 @@
 """Build the spectral model's shipped tables from the published measurements (offline).
 
-    python -m g2r_jax.spectral.build_tables --data ../shared/data [--lattice 9]
+    python -m g2r_jax.colour.spectral.build_tables --data ../shared/data [--lattice 9]
 
 writes `g2r_jax/spectral/data/sensitivity_basis.json` (per-channel PCA basis of the measured
 camera sensitivities: rawtoaces-data (Academy, Apache-2.0) and camspec (Jiang et al., WACV 2013,
@@ -97,7 +97,7 @@ def write_basis(data_dir, n_components: int = 6) -> None:
     document = {
         "about": "Per-channel PCA basis (mean + components, variances) of measured camera spectral "
                  "sensitivities on 380-780 nm at 5 nm, each camera normalised to green peak 1; "
-                 "g2r_jax.spectral.build_tables.",
+                 "g2r_jax.colour.spectral.build_tables.",
         "source": f"{len(sets)} measured sets: rawtoaces-data camera/*.json (Academy Software Foundation, "
                   "Apache-2.0) and camspec_database.txt (Jiang, Liu, Gu, Suesstrunk, WACV 2013, CC BY-NC-SA 4.0)",
         "cameras": [name for _, name, _ in sets],
@@ -118,7 +118,7 @@ def write_lattice(n: int) -> None:
     document = {
         "about": "Jakob & Hanika (2019) sigmoid-polynomial coefficients (1/nm^2, 1/nm, 1) at the nodes of an "
                  f"{n}^3 lattice over linear sRGB [0, 1]^3 (index order r, g, b), fitted to each node's XYZ under "
-                 "D65 (CIE 1931) by colour-science's find_coefficients_Jakob2019; g2r_jax.spectral.build_tables.",
+                 "D65 (CIE 1931) by colour-science's find_coefficients_Jakob2019; g2r_jax.colour.spectral.build_tables.",
         "nodes": nodes.tolist(),
         "coefficients": np.asarray(coefficients).tolist(),
     }

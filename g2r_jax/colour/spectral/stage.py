@@ -36,7 +36,7 @@ EXTRA_METADATA = ("illuminant_family", "illuminant_spectrum")
 def _require(profile):
     if getattr(profile, "spectral", None) is None:
         raise ValueError(f"profile {profile.info.name!r} has no spectral sensitivities: add them with "
-                         "g2r-fit-profile --sensitivities FILE, or g2r_jax.spectral.attach_spectral(profile)")
+                         "g2r-fit-profile --sensitivities FILE, or g2r_jax.profile.editing.attach_spectral(profile)")
     return profile.spectral
 
 

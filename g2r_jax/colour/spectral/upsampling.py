@@ -9,7 +9,7 @@
   s(x) = 1/2 + x / (2 sqrt(1 + x^2)); the coefficients of a colour are found by colour-science's
   optimiser (`find_coefficients_Jakob2019`). For images, coefficients at the nodes of a lattice
   over linear sRGB [0, 1]^3 are a small shipped table (`data/jakob_hanika_lattice.json`, built by
-  `python -m g2r_jax.spectral.build_tables`); per image the camera response of every node is
+  `python -m g2r_jax.colour.spectral.build_tables`); per image the camera response of every node is
   computed (nodes x 81 x 3) and pixels interpolate it trilinearly.
 """
 
@@ -69,7 +69,7 @@ def lattice() -> tuple[np.ndarray, np.ndarray]:
     """The shipped Jakob-Hanika lattice: node positions (n,) per axis and reflectances
     (n, n, n, 81) on the spectral grid (from the stored coefficients)."""
     if not LATTICE_PATH.exists():
-        raise FileNotFoundError(f"{LATTICE_PATH}: missing; build it with python -m g2r_jax.spectral.build_tables")
+        raise FileNotFoundError(f"{LATTICE_PATH}: missing; build it with python -m g2r_jax.colour.spectral.build_tables")
     document = json.loads(LATTICE_PATH.read_text())
     nodes = np.asarray(document["nodes"], np.float64)
     coefficients = np.asarray(document["coefficients"], np.float64).reshape(len(nodes), len(nodes), len(nodes), 3)

@@ -1,8 +1,9 @@
-"""Fit the profile's noise to what a file's own pixels show (`g2r_jax.noise_estimation`).
+"""Fit a noise model to what a file's own pixels show (`g2r_jax.sensor.noise.estimation`).
 
-- `fit_noise_extension(estimate, profile, correlation=...)`: the profile with a noise level
-  function per CFA position (piecewise linear on `DEFAULT_KNOTS`, optionally monotone) and a 3 x 3
-  correlation kernel per position (`g2r_jax.noise_shape`, `sensor.NoiseModel`).
+- `extended_noise_model(estimate, noise, black_level, white_level, correlation=...)`: the
+  `NoiseModel` with a noise level function per CFA position (piecewise linear on `DEFAULT_KNOTS`,
+  optionally monotone) and a 3 x 3 correlation kernel per position (`g2r_jax.sensor.noise.shape`);
+  `g2r_jax.profile.editing.fit_noise_extension` puts it in a profile.
 - `fit_correlation_by_level(estimate)`: a 3 x 3 kernel per position and its share by signal
   level (`NoiseModel.correlation_knots`, `correlation_weight`), for noise that is smoothed only
   at some levels (in-camera denoising above a signal level); `autocorrelation_at_levels(noise,
@@ -22,7 +23,6 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from g2r_jax.sensor.noise import estimation as _estimation
-from g2r_jax.profile import schema as _profile
 
 # Normalised signal knots of the level function: 0, then three per octave from 2^-10 to 1.
 DEFAULT_KNOTS = np.concatenate([[0.0], np.geomspace(2.0**-10, 1.0, 31)])
@@ -115,7 +115,7 @@ def fit_correlation_kernel(correlation: _estimation.NoiseCorrelationEstimate) ->
 
 def kernel_for_autocorrelation(rho, sd=None) -> np.ndarray:
     """(3, 3) kernel k (unit sum of squares) whose autocorrelation matches `rho` (13,) at
-    `noise_estimation.LAGS` (weights 1 / `sd`; Levenberg-Marquardt from a near-identity kernel)."""
+    `sensor.noise.estimation.LAGS` (weights 1 / `sd`; Levenberg-Marquardt from a near-identity kernel)."""
     target = _estimation._window(rho)
     sd = _estimation._window(np.ones(len(rho)) if sd is None else sd)
 
@@ -140,7 +140,7 @@ def blended_kernel(kernel, weight) -> np.ndarray:
 
 def autocorrelation_at_levels(noise, signal) -> np.ndarray:
     """(4, B, 13) autocorrelation of the noise a NoiseModel simulates at `signal` (4, B), at
-    `noise_estimation.LAGS` (0 beyond lag 0 for white noise): its kernel, blended with delta by
+    `sensor.noise.estimation.LAGS` (0 beyond lag 0 for white noise): its kernel, blended with delta by
     its weight at each level where it has one (`sensor.noise.shape`)."""
     signal = np.asarray(signal, np.float64)
     out = np.zeros(signal.shape + (len(_estimation.LAGS),))
@@ -204,7 +204,7 @@ def fit_correlation_by_level(estimate, *, knots=DEFAULT_KNOTS, min_blocks: int =
 
 
 def kernel_autocorrelation(kernel) -> np.ndarray:
-    """(13,) autocorrelation of a 3 x 3 kernel at `noise_estimation.LAGS`."""
+    """(13,) autocorrelation of a 3 x 3 kernel at `sensor.noise.estimation.LAGS`."""
     k = np.asarray(kernel, np.float64)
     padded = np.pad(k, 2)
     return np.array([np.sum(k * padded[2 + dy:5 + dy, 2 + dx:5 + dx]) for dy, dx in _estimation.LAGS]) / np.sum(k * k)
@@ -246,28 +246,28 @@ def predicted_variance(noise, iso: float, signal) -> np.ndarray:
     return shot[:, None] * np.maximum(signal, 0) + read[:, None]
 
 
-def fit_noise_extension(estimate, profile, *, correlation=None, iso: float | None = None, knots=DEFAULT_KNOTS,
-                        monotone: bool = False):
-    """The profile with its noise extended by a measured level function (and correlation kernel).
+def extended_noise_model(estimate, noise, black_level, white_level, *, correlation=None, iso: float | None = None,
+                         knots=DEFAULT_KNOTS, monotone: bool = False):
+    """`noise` (a `NoiseModel`) extended by a measured level function (and correlation kernel).
 
     **Arguments:** `estimate`: a `NoiseLevelEstimate` of one file (or of several files of one
-    ISO pooled); `correlation`: a `NoiseCorrelationEstimate` (None: no kernel); `iso`: the
-    files' ISO (default: the profile's, when it has one ISO row); `knots`, `monotone`: see
-    `fit_level_function`.
+    ISO pooled); `black_level` (4,), `white_level`: the files' levels (the rounding variance,
+    `estimation.quantisation_variance`, floors the fit); `correlation`: a
+    `NoiseCorrelationEstimate` (None: no kernel); `iso`: the files' ISO (default: the model's,
+    when it has one ISO row); `knots`, `monotone`: see `fit_level_function`.
 
-    **Returns:** a `SensorProfile` whose `noise.level_variance` holds the fitted function at the
-    row of `iso` (added to the table if new) and, at the other ISO rows, the same function scaled
-    by the ratio of the profile's shot * x + read at that row to that at `iso` (the measured
-    shape carried to the other ISOs). Positions without an estimate keep shot * x + read.
+    **Returns:** a `NoiseModel` whose `level_variance` holds the fitted function at the row of
+    `iso` (added to the table if new) and, at the other ISO rows, the same function scaled by
+    the ratio of the model's shot * x + read at that row to that at `iso` (the measured shape
+    carried to the other ISOs). Positions without an estimate keep shot * x + read.
     """
-    noise = profile.noise
     isos = np.asarray(noise.iso, np.float64)
     if iso is None:
         if len(isos) != 1:
-            raise ValueError("the profile has several ISO rows: say at which ISO the estimate was measured (iso=...)")
+            raise ValueError("the noise model has several ISO rows: say at which ISO the estimate was measured (iso=...)")
         iso = float(isos[0])
     knots = np.asarray(knots, np.float64)
-    floor = _estimation.quantisation_variance(profile.black_level, float(profile.white_level))
+    floor = _estimation.quantisation_variance(black_level, float(white_level))
     fitted = fit_level_function(estimate, knots=knots, monotone=monotone, floor_variance=floor)
     linear_at_iso = predicted_variance(_no_shape(noise), iso, np.broadcast_to(knots, (4, len(knots))))
     fitted = np.where(np.isfinite(fitted), fitted, linear_at_iso)
@@ -285,8 +285,7 @@ def fit_noise_extension(estimate, profile, *, correlation=None, iso: float | Non
     if correlation is not None:
         shape["correlation_kernel"] = jnp.asarray(fit_correlation_kernel(correlation), dtype)
         shape.update(correlation_knots=None, correlation_weight=None)   # one kernel at every level
-    extended = type(noise)(iso_range=noise.iso_range, **{**_fields(noise), **shape})
-    return _profile.replace(profile, noise=extended)
+    return type(noise)(iso_range=noise.iso_range, **{**_fields(noise), **shape})
 
 
 def _fields(noise) -> dict:

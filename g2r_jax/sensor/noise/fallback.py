@@ -8,8 +8,8 @@ Issue 8: DNGs without NoiseProfile (e.g. Canon 350D conversions) or with an all-
 - `ok`: NoiseProfile with S > 0 and O > 0 for every plane: used (median per ISO, as before).
 - `missing`, `zero` (all terms 0) or `degenerate` (a term <= 0 or not finite): the noise level
   function is measured from the file's pixels where LibRaw decodes them
-  (`noise_estimation.estimate_noise_level_function`) and fitted by S x + O per CFA position
-  (`noise_extension.fit_shot_read`); a degenerate tag whose pixels cannot be decoded is kept
+  (`sensor.noise.estimation.estimate_noise_level_function`) and fitted by S x + O per CFA position
+  (`sensor.noise.extension.fit_shot_read`); a degenerate tag whose pixels cannot be decoded is kept
   with O raised to the rounding variance 1/12 DN^2 (the least noise a quantised raw has).
 - An ISO with tag rows uses them; measured rows fill ISOs without. Every file's ISO is kept
   (files without an ISO count as 100). Nothing usable at all: a noiseless model at the files'
@@ -164,8 +164,43 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
     DarkFrameStatistics)] of the folder's dark frames (not among `infos`), whose read term
     replaces that of their ISO. `source` is one sentence for the profile's provenance."""
     dark = dark_frames_by_iso(dark_frames)
-    tag_rows, measured_rows, floored_rows, kinds, problems = {}, {}, {}, {}, []
-    to_measure = {}
+    tag_rows, kinds, to_measure = _sort_by_noise_profile(infos, cfa_pattern)
+    measured_rows, unmeasured, problems, methods = _measure_groups(to_measure, dark, measure)
+    floored_rows = _floored_degenerate_rows(unmeasured, cfa_pattern)
+    rows = {iso: tag_rows[iso] for iso in tag_rows}
+    for iso, values in measured_rows.items():
+        rows.setdefault(iso, values)
+    for iso, values in floored_rows.items():
+        rows.setdefault(iso, values)
+    # the dark frames' read term for every row of their ISO (tags' shot kept; a measured shot was
+    # fitted with it held); with no other file at all, dark frames alone give rows without shot noise
+    used_dark = {iso: found for iso, found in dark.items() if iso in rows or not infos}
+    for iso, found in used_dark.items():
+        rows[iso] = ([np.stack([row[:, 0], found.read], axis=1) for row in rows[iso]] if iso in rows
+                     else [np.stack([np.zeros(4), found.read], axis=1)])
+    _warn_unusable_profiles(kinds, problems, bool(rows))
+    if not rows:
+        isos = np.asarray(sorted({float(i.iso) if i.iso else 100.0 for i in infos}))
+        model = _sensor.NoiseModel(iso=jnp.asarray(isos, dtype), shot=jnp.zeros((len(isos), 4), dtype),
+                                   read=jnp.zeros((len(isos), 4), dtype),
+                                   iso_range=jnp.asarray([isos.min(), isos.max()], dtype))
+        return model, "noise: NONE - no file has a usable NoiseProfile and none could be measured (no noise is simulated)"
+    isos = np.array(sorted(rows))
+    table = np.stack([np.median(np.stack(rows[i]), axis=0) for i in isos])
+    model = _sensor.NoiseModel(iso=jnp.asarray(isos, dtype), shot=jnp.asarray(table[..., 0], dtype),
+                               read=jnp.asarray(table[..., 1], dtype),
+                               iso_range=jnp.asarray([isos.min(), isos.max()], dtype))
+    n_measured = sum(len(v) for iso, v in measured_rows.items() if iso not in tag_rows)
+    n_floored = sum(len(v) for iso, v in floored_rows.items() if iso not in tag_rows and iso not in measured_rows)
+    parts = _source_parts(sum(len(v) for v in tag_rows.values()), n_measured, methods, n_floored, used_dark)
+    _warn_dark_frames(dark, used_dark, bool(infos))
+    return model, "noise: " + "; ".join(parts) + f" (ISO {', '.join(f'{i:g}' for i in isos)})"
+
+
+def _sort_by_noise_profile(infos, cfa_pattern):
+    """(tag rows by ISO, file names by `classify_noise_profile` kind, files to measure grouped by
+    ISO and levels): files of one ISO and one black/white level pool their flat blocks."""
+    tag_rows, kinds, to_measure = {}, {}, {}
     for info in infos:
         iso = float(info.iso) if info.iso else 100.0
         kind = classify_noise_profile(info)
@@ -173,9 +208,14 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
         if kind == "ok":
             tag_rows.setdefault(iso, []).append(_tag_per_position(info, cfa_pattern))
             continue
-        # files of one ISO and one black/white level pool their flat blocks (`measure_pooled`)
         to_measure.setdefault((iso, tuple(_levels(info)[0]), _levels(info)[1]), []).append(info)
-    unmeasured, methods = [], []
+    return tag_rows, kinds, to_measure
+
+
+def _measure_groups(to_measure, dark, measure: bool):
+    """(measured rows by ISO, files left unmeasured, (name, problem) pairs, methods used):
+    `measure_pooled` on each group, the read term held at the dark frames' where they give one."""
+    measured_rows, unmeasured, problems, methods = {}, [], [], []
     for (iso, _, _), group in to_measure.items():
         if not measure:
             problems.extend((Path(i.path).name, "pixels not measured") for i in group)
@@ -190,53 +230,41 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
             measured_rows.setdefault(iso, []).extend([np.stack(measured, axis=1)] * max(n_read, 1))
         else:
             unmeasured.extend(group)
+    return measured_rows, unmeasured, problems, methods
+
+
+def _floored_degenerate_rows(unmeasured, cfa_pattern) -> dict:
+    """Rows by ISO of the unmeasured files with a degenerate NoiseProfile: S at least 0, O at least
+    the rounding variance 1/12 DN^2."""
+    floored_rows = {}
     for info in unmeasured:
-        iso = float(info.iso) if info.iso else 100.0
-        kind = classify_noise_profile(info)
-        if kind == "degenerate":
+        if classify_noise_profile(info) == "degenerate":
             table = _tag_per_position(info, cfa_pattern)
             black, white = _levels(info)
             table[:, 0] = np.maximum(np.nan_to_num(table[:, 0]), 0.0)
             table[:, 1] = np.maximum(np.nan_to_num(table[:, 1]), _estimation.quantisation_variance(black, white))
-            floored_rows.setdefault(iso, []).append(table)
-    all_isos = sorted({float(i.iso) if i.iso else 100.0 for i in infos})
-    rows = {iso: tag_rows[iso] for iso in tag_rows}
-    for iso, values in measured_rows.items():
-        rows.setdefault(iso, values)
-    for iso, values in floored_rows.items():
-        rows.setdefault(iso, values)
-    # the dark frames' read term for every row of their ISO (tags' shot kept; a measured shot was
-    # fitted with it held); with no other file at all, dark frames alone give rows without shot noise
-    used_dark = {iso: found for iso, found in dark.items() if iso in rows or not infos}
-    for iso, found in used_dark.items():
-        rows[iso] = ([np.stack([row[:, 0], found.read], axis=1) for row in rows[iso]] if iso in rows
-                     else [np.stack([np.zeros(4), found.read], axis=1)])
+            floored_rows.setdefault(float(info.iso) if info.iso else 100.0, []).append(table)
+    return floored_rows
+
+
+def _warn_unusable_profiles(kinds, problems, any_rows: bool) -> None:
     bad = {k: v for k, v in kinds.items() if k != "ok"}
-    n_measured = sum(len(v) for iso, v in measured_rows.items() if iso not in tag_rows)
-    n_floored = sum(len(v) for iso, v in floored_rows.items() if iso not in tag_rows and iso not in measured_rows)
-    if bad:
-        listing = "; ".join(f"{kind}: {', '.join(names)}" for kind, names in sorted(bad.items()))
-        by_reason = {}
-        for name, reason in problems:
-            by_reason.setdefault(reason, []).append(name)
-        why = "; ".join(f"{', '.join(names)}: {reason}" for reason, names in by_reason.items())
-        outcome = "noise measured from their pixels" if not problems else f"could not measure all of them ({why})"
-        if not rows:
-            outcome = f"no noise could be measured ({why}); the profile simulates NO NOISE"
-        warnings.warn(f"no usable NoiseProfile ({listing}): {outcome}", stacklevel=2)
-    if not rows:
-        isos = np.asarray(all_isos)
-        model = _sensor.NoiseModel(iso=jnp.asarray(isos, dtype), shot=jnp.zeros((len(isos), 4), dtype),
-                                   read=jnp.zeros((len(isos), 4), dtype),
-                                   iso_range=jnp.asarray([isos.min(), isos.max()], dtype))
-        return model, "noise: NONE - no file has a usable NoiseProfile and none could be measured (no noise is simulated)"
-    isos = np.array(sorted(rows))
-    table = np.stack([np.median(np.stack(rows[i]), axis=0) for i in isos])
-    model = _sensor.NoiseModel(iso=jnp.asarray(isos, dtype), shot=jnp.asarray(table[..., 0], dtype),
-                               read=jnp.asarray(table[..., 1], dtype),
-                               iso_range=jnp.asarray([isos.min(), isos.max()], dtype))
+    if not bad:
+        return
+    listing = "; ".join(f"{kind}: {', '.join(names)}" for kind, names in sorted(bad.items()))
+    by_reason = {}
+    for name, reason in problems:
+        by_reason.setdefault(reason, []).append(name)
+    why = "; ".join(f"{', '.join(names)}: {reason}" for reason, names in by_reason.items())
+    outcome = "noise measured from their pixels" if not problems else f"could not measure all of them ({why})"
+    if not any_rows:
+        outcome = f"no noise could be measured ({why}); the profile simulates NO NOISE"
+    warnings.warn(f"no usable NoiseProfile ({listing}): {outcome}", stacklevel=3)
+
+
+def _source_parts(n_tags: int, n_measured: int, methods, n_floored: int, used_dark) -> list[str]:
+    """The provenance sentence's parts: where each row of the noise table came from."""
     parts = []
-    n_tags = sum(len(v) for v in tag_rows.values())
     if n_tags:
         parts.append(f"NoiseProfile tags of {n_tags} file(s)")
     if n_measured:
@@ -249,12 +277,15 @@ def noise_and_source(infos, cfa_pattern, dtype=np.float32, *, measure: bool = Tr
         n_dark = sum(found.n_frames for found in used_dark.values())
         parts.append(f"read term from {n_dark} dark frame(s) (ISO {', '.join(f'{i:g}' for i in sorted(used_dark))}; "
                      f"g2r_jax.measure.dark_frames: variance per CFA site, hot pixels left out)")
-    if used_dark and not infos:
+    return parts
+
+
+def _warn_dark_frames(dark, used_dark, any_infos: bool) -> None:
+    if used_dark and not any_infos:
         warnings.warn(f"only dark frames ({sum(f.n_frames for f in used_dark.values())}): their read noise is "
                       "used, but no file with light gives the shot noise; the profile simulates NO SHOT NOISE",
-                      stacklevel=2)
+                      stacklevel=3)
     unused = sorted(set(dark) - set(used_dark))
     if unused:
         warnings.warn(f"dark frames at ISO {', '.join(f'{i:g}' for i in unused)} not used: no other file of that "
-                      "ISO gives a shot term to go with their read noise", stacklevel=2)
-    return model, "noise: " + "; ".join(parts) + f" (ISO {', '.join(f'{i:g}' for i in isos)})"
+                      "ISO gives a shot term to go with their read noise", stacklevel=3)
