@@ -38,12 +38,10 @@ class ReadoutNoise(NamedTuple):
     correlation_weight: Optional[Float[Array, "4 M"]] = None
 
 
-def noise_at_iso(noise: NoiseModel, iso, *, shot=None, read=None) -> ReadoutNoise:
+def noise_at_iso(noise: NoiseModel, iso) -> ReadoutNoise:
     """The `ReadoutNoise` of a profile's `NoiseModel` at `iso` (shot and read interpolated in ISO,
-    `noise_parameters`; the level function's variances at `iso`, `noise_level_at`). `shot`, `read`:
-    already interpolated values to use instead (the pipeline draws them with the ISO)."""
-    if shot is None or read is None:
-        shot, read = noise_parameters(iso, noise)
+    `noise_parameters`; the level function's variances at `iso`, `noise_level_at`)."""
+    shot, read = noise_parameters(iso, noise)
     return ReadoutNoise(shot=shot, read=read, level_knots=noise.level_knots, level_variance=noise_level_at(iso, noise),
                         correlation_kernel=noise.correlation_kernel, correlation_knots=noise.correlation_knots,
                         correlation_weight=noise.correlation_weight)
