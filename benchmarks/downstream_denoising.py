@@ -3,13 +3,16 @@ on a burst: prints the table (PSNR on WhiteLevel - BlackLevel, the reference's o
 out), the noise models and the timings.
 
     python benchmarks/downstream_denoising.py [FOLDER] [--profile NAME_OR_JSON] [--seeds 0 1 2]
-        [--steps 300] [--folds 2] [--cg 16] [--cg-folder ../shared/data/cg/carla]
-        [--profile-noise-scale 1]
+        [--steps N | --max-steps 3000] [--folds 2] [--cg 16] [--cg-folder ../shared/data/cg/carla]
+        [--profile-noise-scale 1] [--dim]
 
 FOLDER: DNGs of one static scene from one camera (bad files are named and skipped). Without it,
 a synthetic burst of 8 frames (192 x 256, a dim dead-leaves scene, no NoiseProfile tag) is made
 from the profile's noise at --iso in a temporary folder, and its known noise is printed beside
-the rows' models.
+the rows' models. `--dim`: instead, issue 34's kind of burst: 10-bit, black 60, white 1023,
+ISO 100, the scene 13-60 DN above black and defocused, photon-transfer noise of a known truth
+(shot 5.2e-4, read 2.4e-6 normalised), the profile given that truth. Without --steps the step
+count is chosen on a validation split of the burst (`denoising.choose_steps`).
 """
 
 from __future__ import annotations
@@ -27,7 +30,9 @@ def main(argv=None):
     parser.add_argument("folder", nargs="?", type=Path, help="folder of burst DNGs (default: a synthetic burst)")
     parser.add_argument("--profile", default="s20fe_night", help="shipped profile name or profile JSON")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--steps", type=int, default=None, help="Adam steps per training (default: chosen)")
+    parser.add_argument("--max-steps", type=int, default=3000, help="cap of the chosen step count")
+    parser.add_argument("--dim", action="store_true", help="a dim, defocused 10-bit synthetic burst (issue 34)")
     parser.add_argument("--folds", type=int, default=2)
     parser.add_argument("--cg", type=int, default=16, help="number of CG images (0: no CG content)")
     parser.add_argument("--cg-folder", type=Path, default=DEFAULT_CG)
@@ -49,7 +54,16 @@ def main(argv=None):
     contents = ("cg", "scene") if cg else ("scene",)
     with tempfile.TemporaryDirectory() as scratch:
         folder = args.folder
-        if folder is None:
+        if folder is None and args.dim:
+            from g2r_jax.audit.synthetic_bursts import BurstTruth, truth_profile
+
+            truth = BurstTruth(black_tag=60.0, white=1023.0, shot=5.2e-4, read=2.4e-6, iso=100.0)
+            profile, folder = truth_profile(profile, truth), Path(scratch)
+            bursts.write_synthetic_burst(folder, profile, n_frames=args.frames, height=192, width=256, iso=100.0,
+                                         seed=0, low=13 / 963, high=60 / 963, fine=False, blur=3.0)
+            print(f"synthetic dim burst: {args.frames} frames 256x192, 10-bit, black 60, white 1023, ISO 100, "
+                  f"13-60 DN above black, defocused; known noise shot {truth.shot:.3g}, read {truth.read:.3g}")
+        elif folder is None:
             folder = Path(scratch)
             _, truth = bursts.write_synthetic_burst(folder, profile, n_frames=args.frames, height=192, width=256,
                                                     iso=args.iso, seed=0)
@@ -64,9 +78,9 @@ def main(argv=None):
             profile = schema.replace(profile, noise=noise)
             print(f"the rows' profile has {args.profile_noise_scale:g} times the noise variance of {args.profile}")
         read_s = time.perf_counter() - started
-        result = denoising.denoising_benchmark(burst, profile, cg, contents=contents, seeds=args.seeds,
-                                               steps=args.steps, folds=args.folds, cg_count=args.cg,
-                                               progress=lambda line: print("  " + line, flush=True))
+        result = denoising.run_burst_check(burst, profile, cg, contents=contents, seeds=args.seeds,
+                                           steps=args.steps, max_steps=args.max_steps, folds=args.folds,
+                                           cg_count=args.cg, progress=lambda line: print("  " + line, flush=True))
     total = time.perf_counter() - started
     print()
     print(result.summary())

@@ -33,7 +33,7 @@ class DenoiserTraining:
     of `steps_per_round` steps."""
 
     patch: int = 32
-    batch: int = 16
+    batch: int = 8
     learning_rate: float = 1e-3
     steps_per_round: int = 100
 
@@ -129,7 +129,7 @@ def train_denoiser(key, targets, *, inputs=None, noise_fn=None, noise_data=None,
     rounds = max(1, -(-int(steps) // training.steps_per_round))
     config = LoopConfig(rounds=rounds, steps_per_round=training.steps_per_round,
                         learning_rate=training.learning_rate, final_fraction=0.1, patience=patience,
-                        min_improvement=min_improvement)
+                        min_improvement=min_improvement, scan=False)
     data = (jnp.float32(gain), noise_data)
     check = None
     if validation is not None:

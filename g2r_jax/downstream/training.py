@@ -4,7 +4,8 @@ Networks are equinox modules (pytrees of arrays, `eqx.Module`); the optimiser is
 Ba, "Adam: A Method for Stochastic Optimization", ICLR 2015) from optax with one learning-rate
 schedule, `learning_rate_schedule`: cosine decay from the peak to `final_fraction` of it
 (Loshchilov & Hutter, "SGDR", ICLR 2017; `final_fraction` 1 keeps the rate constant). One loop,
-`fit`: rounds of `steps_per_round` optimiser steps (one jitted `lax.scan` per round), a
+`fit`: rounds of `steps_per_round` optimiser steps (one jitted `lax.scan` per round, or one
+jitted step at a time: `LoopConfig.scan`), a
 validation error after each round, the best round's model kept, and optional early stopping
 when `patience` rounds in a row improve on the best by no more than `min_improvement`. With
 `members`, `fit` trains several models at once (one vmapped program; their data stacked on a
@@ -34,7 +35,10 @@ class LoopConfig:
     """The loop of `fit`: at most `rounds` rounds of `steps_per_round` Adam steps; stop early when
     `patience` (None: never) rounds in a row fail to lower the best validation error by more than
     `min_improvement`; `learning_rate` peak of the schedule, decayed to `final_fraction` of it over
-    the cap (`rounds * steps_per_round` steps)."""
+    the cap (`rounds * steps_per_round` steps). `scan`: a round is one `lax.scan` (fast for the
+    CNN's matrix-product convolutions), else a Python loop of one jitted step each (XLA's CPU
+    convolutions ran 3.5x slower per step inside a scan: 186 against 52 ms, the denoiser, 2 cores
+    under load)."""
 
     rounds: int
     steps_per_round: int
@@ -42,6 +46,7 @@ class LoopConfig:
     final_fraction: float = 1.0
     patience: int | None = None
     min_improvement: float = 0.0
+    scan: bool = True
 
     @property
     def max_steps(self) -> int:
@@ -61,19 +66,42 @@ def optimiser_for(config: LoopConfig) -> optax.GradientTransformation:
     return optax.adam(learning_rate_schedule(config.learning_rate, config.max_steps, config.final_fraction))
 
 
-def _round_program(step_loss: Callable, optimiser: optax.GradientTransformation):
-    """(model, opt_state, step_inputs, data) -> (model, opt_state, mean loss): one `lax.scan` over
-    the round's steps (step_inputs carry a leading axis of steps)."""
+def _step_program(step_loss: Callable, optimiser: optax.GradientTransformation):
+    """(model, opt_state, step_input, data) -> (model, opt_state, loss): one Adam step."""
 
-    def step(carry, step_input, data):
-        model, state = carry
+    def step(model, state, step_input, data):
         loss, grads = eqx.filter_value_and_grad(step_loss)(model, step_input, data)
         updates, state = optimiser.update(grads, state, eqx.filter(model, eqx.is_array))
-        return (eqx.apply_updates(model, updates), state), loss
+        return eqx.apply_updates(model, updates), state, loss
+
+    return step
+
+
+def _round_program(step):
+    """(model, opt_state, step_inputs, data) -> (model, opt_state, mean loss): one `lax.scan` of
+    `step` over the round's steps (step_inputs carry a leading axis of steps)."""
 
     def one_round(model, state, step_inputs, data):
-        (model, state), losses = jax.lax.scan(lambda c, s: step(c, s, data), (model, state), step_inputs)
+        def body(carry, step_input):
+            model, state, loss = step(*carry, step_input, data)
+            return (model, state), loss
+
+        (model, state), losses = jax.lax.scan(body, (model, state), step_inputs)
         return model, state, losses.mean()
+
+    return one_round
+
+
+def _looped_round(step):
+    """As `_round_program`, one jitted step at a time from Python (`LoopConfig.scan` False)."""
+    step = jax.jit(step)
+
+    def one_round(model, state, step_inputs, data):
+        losses = []
+        for s in range(len(jax.tree_util.tree_leaves(step_inputs)[0])):
+            model, state, loss = step(model, state, jax.tree_util.tree_map(lambda a: a[s], step_inputs), data)
+            losses.append(loss)
+        return model, state, jnp.mean(jnp.stack(losses))
 
     return one_round
 
@@ -81,8 +109,13 @@ def _round_program(step_loss: Callable, optimiser: optax.GradientTransformation)
 @functools.lru_cache(maxsize=None)
 def _compiled(step_loss: Callable, validate: Callable | None, config: LoopConfig, members: bool):
     optimiser = optimiser_for(config)
-    one_round = _round_program(step_loss, optimiser)
+    step = _step_program(step_loss, optimiser)
     init = lambda model: optimiser.init(eqx.filter(model, eqx.is_array))
+    if not config.scan:
+        if members:
+            raise ValueError("training several members at once needs LoopConfig.scan")
+        return _looped_round(step), jax.jit(init), None if validate is None else jax.jit(validate)
+    one_round = _round_program(step)
     if members:
         one_round, init = jax.vmap(one_round), jax.vmap(init)
         validate = None if validate is None else jax.vmap(validate)
