@@ -135,6 +135,10 @@ def test_report_folder_and_ranges_are_refused_up_front_by_option(camera_folders,
         assert status == 2 and word in err and not (cg / "sub").exists()
     status, _, err = run(capsys, *common, "--report", "/proc/g2r_probe/x")
     assert status == 2 and "--report /proc/g2r_probe/x" in err
+    status, _, err = run(capsys, *common, "--report", tmp_path / ("n" * 300))      # found by the fuzz campaign
+    assert status == 2 and "--report: cannot use the path (File name too long)" in err
+    status, _, err = run(capsys, "--burst", tmp_path / ("n" * 300), "--report", tmp_path / "r")
+    assert status == 2 and "--burst: cannot use the path" in err
     status, _, err = run(capsys, *common, "--report", tmp_path / "r", "--seeds", 10 ** 30)
     assert status == 2 and "--seeds" in err and "from 1 to 100" in err and "ssize_t" not in err
     status, _, err = run(capsys, "--cg", cg, "--report", tmp_path / "r")

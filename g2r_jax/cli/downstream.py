@@ -83,16 +83,30 @@ def _inputs_problem(args) -> str | None:
         return "--measured needs --cg: the colour check trains on synthetic RAW of CG images"
     for option, items in (("--measured", args.measured or ()), ("--cg", args.cg or ())):
         for item in items:
-            if not Path(item).exists():
-                return f"{option} {item}: no such folder or file"
-    if args.burst is not None and not Path(args.burst).is_dir():
-        return f"--burst {args.burst}: no such folder"
-    return None
+            problem = _path_problem(option, item)
+            if problem:
+                return problem
+    return _path_problem("--burst", args.burst, folder=True) if args.burst is not None else None
+
+
+def _path_problem(option: str, item: str, folder: bool = False) -> str | None:
+    try:
+        found = Path(item).is_dir() if folder else Path(item).exists()
+    except OSError as error:   # a name too long for the system, ...: the reason first, the long name last
+        return f"{option}: cannot use the path ({error.strerror or error}): {item}"
+    return None if found else f"{option} {item}: no such folder" + ("" if folder else " or file")
 
 
 def report_folder_problem(args) -> str | None:
     """Why the report cannot go to `args.report`: empty, an input folder or inside one, or not
     writable (tried by creating and removing a probe file, and any folders made for it)."""
+    try:
+        return _report_folder_problem(args)
+    except OSError as error:   # a name too long, a path through a file: the system's own words
+        return f"--report: cannot use the path ({error.strerror or error}): {args.report}"
+
+
+def _report_folder_problem(args) -> str | None:
     import tempfile
 
     if not args.report.strip():
