@@ -197,6 +197,23 @@ def exposure_spread() -> tuple[ExposureModel, str]:
 WITHOUT_MEASURED_ILLUMINANTS = "prior"   # fit_profile's kind for cameras without measured scene illuminants
 
 
+def with_pooled_lights(profile):
+    """(profile with the pooled lights, their provenance) for a camera without measured scene lights:
+    other cameras' measured lights carried through its own colour matrices (`g2r_jax.illuminants.pooled`),
+    the best out-of-the-box lights of the few-DNG measurement (docs/pages/validation/illuminant_models.md).
+    A pool source with this camera's own D65 ColorMatrix (its NUS lights, the benchmark's test images)
+    is left out."""
+    from g2r_jax.illuminants.choice import fit_pooled_for_camera
+    from g2r_jax.illuminants.pooled import load_pool_matrices, load_pooled, same_camera_sources
+
+    model, words = fit_pooled_for_camera(np.zeros((0, 2)), profile.colour)
+    own = same_camera_sources(profile.colour, load_pool_matrices())
+    left = f"; this camera's own lights ({', '.join(own)}) left out" if own else ""
+    return replace(profile, illuminants=model), (
+        f"pooled lights: {words}{left}. Pool: {load_pooled.__module__} data, "
+        f"{sum(len(v) for v in load_pooled().values())} lights (python -m g2r_jax.illuminants.pooled ../shared/data).")
+
+
 def prior_provenance() -> str:
     """Provenance of the illuminants of a camera with no measured scene illuminants: the
     cross-camera prior of real scene illuminants (`g2r_jax.illuminants.prior`, day preset) mapped
@@ -246,9 +263,9 @@ def dslr_profiles(cameras: dict, noise_db: dict, exposure: tuple) -> None:
             info = nus_info(name, cameras[name], camera)
             colour = (f"Adobe DNG Converter ColorMatrix pair (Standard light A, D65) of the NUS 8-camera dataset. "
                       f"As released in the {PAPERS} (../shared/data/cameras/color_matrices.json).")
-            profile = fit_profile([info], name=name, illuminant_model=WITHOUT_MEASURED_ILLUMINANTS,
-                                  noise=noise_model(noise))
-            illuminants = prior_provenance()
+            profile, illuminants = with_pooled_lights(fit_profile([info], name=name,
+                                                                  illuminant_model=WITHOUT_MEASURED_ILLUMINANTS,
+                                                                  noise=noise_model(noise)))
         else:
             info, colour = gehler_shi_info(camera)
             profile = fit_profile([info], name=name, illuminant_model="mixture", noise=noise_model(noise),
@@ -291,8 +308,8 @@ def s20fe_night(cameras: dict) -> None:
 
 def gopro(exposure: tuple) -> None:
     path = DATA / "dng" / "gopro_hero6_GOPR0024.dng"
-    profile = fit_profile([read_dng_info(path)], name="gopro_hero6", illuminant_model=WITHOUT_MEASURED_ILLUMINANTS)
-    illuminants = prior_provenance()
+    profile, illuminants = with_pooled_lights(
+        fit_profile([read_dng_info(path)], name="gopro_hero6", illuminant_model=WITHOUT_MEASURED_ILLUMINANTS))
     source = "the real GoPro HERO6 Black DNG gopro_hero6_GOPR0024.dng (gopro/gpr repository, Apache-2.0 or MIT)"
     profile = with_provenance(
         replace(profile, exposure=exposure[0]),
