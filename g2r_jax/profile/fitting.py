@@ -216,12 +216,14 @@ def illuminant_model_for(chromaticities, colour_model, kind: str = "auto", seed:
     """Fit the illuminant model `kind` to the measured lights (r/g, b/g) of one camera.
 
     `kind`: one of `illuminants.choice.KINDS`: 'kernel' (a kernel density of the lights along
-    the camera's Planckian locus, blended with the cross-camera prior), 'gaussian' (published),
+    the camera's Planckian locus, blended with the cross-camera prior), 'pooled' (the same kernel
+    blended with other cameras' measured lights carried into this camera), 'gaussian' (published),
     'mixture' (BIC-selected), 'locus' (supplement S3), 'prior', 'prior-night', 'prior-day-night',
     or 'auto', which takes the kernel model from `illuminants.choice.MIN_LIGHTS_FOR_KERNEL` (10)
-    distinct measured lights on and the prior's day preset below: chosen by the downstream
-    measurement (an illuminant estimator trained on real images relit to each model's lights,
-    tested on the real NUS images; docs/pages/validation/illuminant_models.md).
+    distinct measured lights on and 'pooled' below (the prior with a night preset where the lights
+    strongly favour one): chosen by the downstream measurement (an illuminant estimator trained on
+    g2r_jax RAW of CG frames, tested on the real NUS images; benchmarks/few_lights.py,
+    docs/pages/validation/illuminant_models.md).
     `illuminants.choice.choose_illuminant_model` gives the same model with the reason for it.
     """
     return _illuminant_choice.choose_illuminant_model(chromaticities, colour_model, kind, seed, dtype).model
