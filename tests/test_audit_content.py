@@ -5,6 +5,7 @@ test and no verdict. Files written in numpy (`synthetic_bursts`), independent of
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from g2r_jax.audit import content_report, report
 from g2r_jax.audit import synthetic_bursts as sb
@@ -37,3 +38,19 @@ def test_small_files_and_missing_neutrals_give_no_section():
     assert content_report.thumbnail(mosaic, info) is None
     assert content_report.compare([{"content_thumbnail": None}], files(0.5, n=1)) is None
     assert content_report.lines(None) == [] and report._content_html(None) == ""
+
+
+@pytest.mark.slow
+def test_diagnose_reports_the_content_of_both_sets():
+    """An audit of demo-camera files of 200 x 300 carries the section, over the measured scenes
+    (dark frames left out) and the simulated files, and its summary shows it."""
+    from g2r_jax.audit import diagnose, synthetic
+    from audit_helpers import dark_frames, measured_set
+
+    camera = synthetic.demo_profile()
+    files = measured_set(camera, 3, n=6) + dark_frames(camera, 3, n=2)
+    found = diagnose(camera, files, seed=3, n_permutations=200)
+    section = found["content"]
+    assert section["n_measured"] == 6 and section["n_simulated"] == found["n_simulated"]
+    assert all(section["measured"][name] is not None for name in section["names"])
+    assert "scene content" in report.summary(found)
