@@ -271,3 +271,34 @@ def test_the_commands_page_lists_every_option():
         if action.help != "==SUPPRESS==":
             for option in action.option_strings:
                 assert option in section, f"docs/pages/commands.md: g2r-downstream {option} missing (paste its --help)"
+
+
+def test_a_registered_row_is_trained_and_reported_like_the_others(monkeypatch):
+    """The place for extra training sets (e.g. with and without a content model)."""
+    from g2r_jax.downstream import estimators, experiment, real_sets, report
+
+    rng = np.random.default_rng(1)
+    images = rng.random((8, 64, 64, 3)).astype(np.float32)
+    lights = rng.uniform(0.2, 0.5, (8, 3))
+    real = real_sets.RealSet("eight", images, lights / lights.sum(1, keepdims=True))
+    calls = []
+
+    def builder(sets, train, fold, seed):
+        calls.append((tuple(train), fold, seed))
+        return sets.real.images[train], sets.real.illuminants[train]
+
+    monkeypatch.setattr(estimators, "train_estimator",
+                        lambda name, x, y, seed=0: (lambda test: np.tile(y.mean(0), (len(test), 1))))
+    try:
+        experiment.register_row("mirror", "mirror of the real files", builder)
+        with pytest.raises(ValueError, match="exists"):
+            experiment.register_row("real", "again", builder)
+        result = experiment.illuminant_experiment(real, g2r_jax.load_profile("NikonD40"), [images[0]],
+                                                  rows=("real", "mirror"), estimators=("moments",), seeds=(0,), n=50,
+                                                  folds=2)
+        table = report.table(result)
+    finally:
+        experiment.ROWS.pop("mirror", None)
+        experiment.EXTRA_ROWS.pop("mirror", None)
+    assert len(calls) == 2 and "mirror of the real files" in table
+    np.testing.assert_allclose(result.errors[("mirror", "moments")][0], result.errors[("real", "moments")][0])

@@ -51,6 +51,7 @@ ROWS = {
     "real_profile_light": "control: real, lights from the model",
     "other_content": "control: other real scenes",
 }
+EXTRA_ROWS: dict = {}   # rows added by `register_row`: name -> builder
 SYNTHETIC_CG_ROWS = ("upi", "published", "shipped", "fitted", "single")
 CONTROL_ROWS = ("real_own_light", "real_other_light", "real_profile_light", "other_content")
 DEFAULT_ROWS = tuple(r for r in ROWS if r != "other_content")
@@ -92,6 +93,20 @@ def fitted_illuminants(profile, illuminants: np.ndarray, kind: str = "auto", see
     return replace(profile, illuminants=illuminant_model_for(chromaticities, profile.colour, kind, seed))
 
 
+def register_row(name: str, label: str, builder) -> None:
+    """Add a training-set row to the experiment (e.g. g2r_jax with and without a content model).
+
+    **Arguments:** `name` (new, not in `ROWS`); `label` for the tables; `builder(sets, train,
+    fold, seed)` -> (thumbnails (N, 64, 64, 3), illuminants (N, 3)), where `sets` is the
+    experiment's `_Sets` (`views(seed)`, `fitted(train, fold, seed)`, `profile`, `real`, `n`).
+    The row is then trained and reported like the others when named in `rows`.
+    """
+    if name in ROWS:
+        raise ValueError(f"row {name!r} exists already")
+    ROWS[name] = label
+    EXTRA_ROWS[name] = builder
+
+
 def _repeat_to(n: int, *arrays):
     count = len(arrays[0])
     reps = max(1, -(-n // count))
@@ -119,6 +134,17 @@ class _Sets:
             self.cache[key] = _sets.linear_to_srgb_views(self.views(seed))
         return self.cache[key]
 
+    def fitted(self, train: np.ndarray, fold: int, seed: int):
+        """The profile with its illuminant model fitted to the training files' lights (cached)."""
+        key = ("fitted", fold, seed)
+        if key not in self.cache:
+            lights = self.real.illuminants[train]
+            if self.lights is not None and self.lights < len(lights):
+                pick = np.random.default_rng(1000 * seed + 10 * fold + 9).choice(len(lights), self.lights, replace=False)
+                lights = lights[pick]
+            self.cache[key] = fitted_illuminants(self.profile, lights, self.illuminant_model, seed)
+        return self.cache[key]
+
     def build(self, row: str, train: np.ndarray, fold: int, seed: int):
         real = self.real
         salt = 1000 * seed + 10 * fold
@@ -134,18 +160,14 @@ class _Sets:
             if key not in self.cache:
                 self.cache[key] = _sets.g2r_set(self.views(seed), self.profile, seed + 2)
             return self.cache[key]
+        if row in EXTRA_ROWS:
+            return EXTRA_ROWS[row](self, train, fold, seed)
         lights = real.illuminants[train]
         if row == "single":
             pick = np.random.default_rng(salt + 3).integers(len(train))
             one = fitted_illuminants(self.profile, lights[pick:pick + 1], self.single_light)
             return _sets.g2r_set(self.views(seed), one, salt + 3)
-        key = ("fitted", fold, seed)
-        if key not in self.cache:
-            folder = lights
-            if self.lights is not None and self.lights < len(lights):
-                folder = lights[np.random.default_rng(salt + 9).choice(len(lights), self.lights, replace=False)]
-            self.cache[key] = fitted_illuminants(self.profile, folder, self.illuminant_model, seed)
-        fitted = self.cache[key]
+        fitted = self.fitted(train, fold, seed)
         if row in ("fitted", "published"):
             return _sets.g2r_set(self.views(seed), fitted, salt + 4, recipe="published" if row == "published" else "dng")
         if row == "other_content":
