@@ -142,6 +142,8 @@ def _report_folder_problem(args) -> str | None:
 
 def check_arguments(args) -> str | None:
     """The first problem found without reading any input file (None when there is none)."""
+    if not args.debug:   # the estimators' names load JAX: XLA's own log lines are not ours (as in run_command)
+        os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
     from g2r_jax.downstream.estimators import ESTIMATORS
     from g2r_jax.profile.shipped import UnknownProfile, profile_path
 
