@@ -302,3 +302,16 @@ def test_a_registered_row_is_trained_and_reported_like_the_others(monkeypatch):
         experiment.EXTRA_ROWS.pop("mirror", None)
     assert len(calls) == 2 and "mirror of the real files" in table
     np.testing.assert_allclose(result.errors[("mirror", "moments")][0], result.errors[("real", "moments")][0])
+
+
+def test_arguments_are_checked_before_jax_is_imported():
+    import subprocess
+    import sys
+
+    from g2r_jax.downstream.estimators import ESTIMATORS
+
+    assert downstream.ESTIMATOR_NAMES == ESTIMATORS
+    code = ("import sys; from g2r_jax.cli.downstream import main; "
+            "status = main(['--burst', '/nonexistent', '--report', '/tmp/x']); print(status, 'jax' in sys.modules)")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.stdout.split() == ["2", "False"] and "--burst /nonexistent" in result.stderr

@@ -21,6 +21,7 @@ EXAMPLES = """  g2r-downstream --measured my_camera_dngs/ --cg renders/ --report
   g2r-downstream --burst burst_dngs/ --report denoising/
 """
 DEFAULT_ESTIMATORS = "cnn,histogram"
+ESTIMATOR_NAMES = ("cnn", "moments", "histogram")   # `downstream.estimators.ESTIMATORS`, without loading JAX
 LIMITS = {"seeds": (1, 100), "n": (50, 100_000), "folds": (2, 50), "denoiser_steps": (1, 1_000_000)}
 
 
@@ -141,18 +142,16 @@ def _report_folder_problem(args) -> str | None:
 
 
 def check_arguments(args) -> str | None:
-    """The first problem found without reading any input file (None when there is none)."""
-    if not args.debug:   # the estimators' names load JAX: XLA's own log lines are not ours (as in run_command)
-        os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
-    from g2r_jax.downstream.estimators import ESTIMATORS
+    """The first problem found without reading any input file and before JAX is imported (None
+    when there is none)."""
     from g2r_jax.profile.shipped import UnknownProfile, profile_path
 
     problem = _inputs_problem(args) or _range_problem(args)
     if problem:
         return problem
-    unknown = [e for e in args.estimators.split(",") if e not in ESTIMATORS]
+    unknown = [e for e in args.estimators.split(",") if e not in ESTIMATOR_NAMES]
     if unknown or not args.estimators:
-        return f"--estimators {args.estimators}: expected some of {', '.join(ESTIMATORS)}"
+        return f"--estimators {args.estimators}: expected some of {', '.join(ESTIMATOR_NAMES)}"
     if args.profile is not None:
         try:
             profile_path(args.profile)
