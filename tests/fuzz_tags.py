@@ -74,7 +74,8 @@ def _width(old, size):
 
 
 def _offset(old, size):
-    return [0, 1, 8, 16, old - 1, old + 1, old - 2, old + 2, old + 4096, size, size - 2, 2 ** 32 - 1]
+    return [0, 1, 8, 16, old - 1, old + 1, old - 2, old + 2, old - 4, old - 8, old - 12, old + 4096, size, size - 2,
+            2 ** 32 - 1]
 
 
 def _count(old, size):

@@ -131,9 +131,11 @@ def test_decoded_raster_checks():
     assert decoded_problem(mosaic, [64] * 4, 1023, RGGB) is None
     assert "shifted against its CFAPattern" in decoded_problem(np.roll(mosaic, 1, axis=1), [64] * 4, 1023, RGGB)
     assert "shifted against its CFAPattern" in decoded_problem(np.roll(mosaic, 1, axis=0), [64] * 4, 1023, RGGB)
-    assert "are 0" in decoded_problem(np.where(np.arange(mosaic.size).reshape(mosaic.shape) < mosaic.size * 0.6,
+    assert "are 0" in decoded_problem(np.where(np.arange(mosaic.size).reshape(mosaic.shape) > mosaic.size * 0.4,
                                                0, mosaic).astype(np.uint16), [64] * 4, 1023, RGGB)
     assert "every decoded pixel is 0" in decoded_problem(np.zeros_like(mosaic), [64] * 4, 1023, RGGB)
+    shifted = np.concatenate([np.zeros(4, np.uint16), mosaic.ravel()[:-4]]).reshape(mosaic.shape)
+    assert "starts with zeros" in decoded_problem(shifted, [64] * 4, 1023, RGGB)   # offsets 8 bytes early
     # what real files look like: pure noise around black (a dark frame), a saturated frame, a constant black frame
     dark = np.random.default_rng(1).normal(64, 2, mosaic.shape).round().astype(np.uint16)
     for fine in (dark, np.full_like(mosaic, 1023), np.full_like(mosaic, 64)):

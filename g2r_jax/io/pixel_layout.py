@@ -329,7 +329,9 @@ def decoded_problem(mosaic: np.ndarray, black_level, white_level: float, cfa_pat
     """A decoded raster its tags cannot describe: values over `FAR_ABOVE_WHITE` x WhiteLevel in more
     than `MAX_SHARE_ABOVE_WHITE` of the pixels (bytes read at the wrong place or width), a constant
     raster outside black..white, zeros in most pixels of a camera whose black level is at least
-    `ZERO_FILL_MIN_BLACK` (LibRaw's fill for data it could not find), or the CFA's green sites
+    `ZERO_FILL_MIN_BLACK` (LibRaw's fill for data it could not find) or in its first two pixels
+    (offsets moved back into the zero padding before the data: the image shifted by whole CFA
+    tiles, which the phase check cannot see), or the CFA's green sites
     out of phase with `cfa_pattern` (`_green_phase_problem`)."""
     if mosaic.size == 0:
         return "decoded raster is empty"
@@ -342,6 +344,9 @@ def decoded_problem(mosaic: np.ndarray, black_level, white_level: float, cfa_pat
     if above > MAX_SHARE_ABOVE_WHITE:
         return (f"{100 * above:.1f} % of the decoded pixels exceed WhiteLevel {white_level:g} by half or more "
                 f"(largest {largest}): the pixel data does not match its tags")
+    if black >= ZERO_FILL_MIN_BLACK and mosaic.shape[1] >= 2 and not mosaic[0, :2].any():
+        return (f"the raster starts with zeros, far below the black level {black:g}: the strip or tile offsets "
+                "point before the pixel data")
     if black >= ZERO_FILL_MIN_BLACK:
         zeros = float(np.count_nonzero(mosaic == 0)) / mosaic.size
         if zeros > ZERO_FILL_SHARE:
