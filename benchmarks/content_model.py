@@ -22,6 +22,7 @@ Protocol, per camera and seed (the 3 folds of the downstream benchmark, `g2r_jax
         [--estimators cnn,moments] [--families chroma,chroma_tone,chroma@0.5] [--select-estimator moments]
         [--jobs 1] [--json out/content_model.json] [--markdown out/content_model.md]
     python benchmarks/content_model.py --fit-speed 300     # the g2r-fit-profile step's time
+    python benchmarks/content_model.py --apply-speed       # unprocess with the model on and off
 
 Data: ../shared/data/estimation/nus/<camera>.npz and ../shared/data/cg/carla/*.png (as
 benchmarks/downstream_nus.py, whose camera profiles it uses).
@@ -202,6 +203,32 @@ def fit_speed(count: int) -> str:
             f"chroma scale {float(model.chroma_scale):.2f}")
 
 
+def apply_speed(repeats: int = 5) -> str:
+    """CPU time of one jitted `unprocess` of a 1000 x 1500 sRGB frame with the content model on and
+    off (the same compiled shapes; best of `repeats` after a warm-up)."""
+    import jax
+
+    import g2r_jax
+    from g2r_jax.content import content_model
+    from g2r_jax.profile.schema import replace
+
+    profile = replace(g2r_jax.load_profile("Canon600D"), content=content_model(0.35))
+    image = np.random.default_rng(0).integers(0, 256, (1000, 1500, 3)).astype(np.uint8)
+    key = jax.random.PRNGKey(0)
+    best = {}
+    for on in (False, True, False, True):
+        run = jax.jit(lambda k, x, p, on=on: g2r_jax.unprocess(k, x, p, content=on)[0])
+        run(key, image, profile).block_until_ready()
+        times = []
+        for _ in range(repeats):
+            cpu = time.process_time()
+            run(key, image, profile).block_until_ready()
+            times.append(time.process_time() - cpu)
+        best[on] = min(best.get(on, np.inf), min(times))
+    return (f"unprocess of a 1000 x 1500 frame, CPU time (best of {repeats}): content off {1000 * best[False]:.1f} ms, "
+            f"on {1000 * best[True]:.1f} ms ({100 * (best[True] / best[False] - 1):+.1f} %)")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cameras", default=",".join(CAMERAS))
@@ -217,7 +244,11 @@ def main(argv=None) -> int:
     parser.add_argument("--json", type=Path)
     parser.add_argument("--markdown", type=Path)
     parser.add_argument("--fit-speed", type=int, metavar="N", help="only time the g2r-fit-profile step on N small DNGs")
+    parser.add_argument("--apply-speed", action="store_true", help="only time unprocess with the model on and off")
     args = parser.parse_args(argv)
+    if args.apply_speed:
+        print(apply_speed())
+        return 0
     if args.fit_speed:
         print(fit_speed(args.fit_speed))
         return 0

@@ -59,12 +59,19 @@ def identity() -> ContentModel:
 
 def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"]) -> Float[Array, "*batch H W 3"]:
     """The content transform of one image (H, W, 3) or a batch (..., H, W, 3) in linear sRGB
-    (values >= 0). The identity model returns its input bit for bit. **Returns:** float32, same
-    shape, >= 0, each image's peak unchanged by the tone power."""
+    (values >= 0). The identity model (and s = 1, p = 1) returns its input bit for bit; only the
+    'chroma_tone' family computes the peak and the power (the others stay one element-wise pass).
+
+    **Returns:** float32, same shape, >= 0, each image's peak unchanged by the tone power."""
     x = jnp.asarray(linear, jnp.float32)
-    luminance = (x @ jnp.asarray(LUMINANCE, jnp.float32))[..., None]
+    if model.family == "identity":
+        return x
+    weights = [float(w) for w in LUMINANCE]   # element-wise (fuses with the pipeline's other pixel stages)
+    luminance = (weights[0] * x[..., 0] + weights[1] * x[..., 1] + weights[2] * x[..., 2])[..., None]
     s = jnp.asarray(model.chroma_scale, jnp.float32)
     x = x + (s - 1.0) * (x - luminance)                     # = Y + s (x - Y); exactly x at s = 1
+    if model.family != "chroma_tone":                       # static: no power, no image-wide peak
+        return x
     p = jnp.asarray(model.tone_power, jnp.float32)
     peak = jnp.max(x, axis=(-3, -2, -1), keepdims=True)
     safe_peak = jnp.where(peak > 0, peak, 1.0)
