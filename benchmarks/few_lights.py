@@ -17,6 +17,8 @@ Identical models (e.g. `auto` below 10 lights and `prior`) are trained once.
     python benchmarks/few_lights.py [--cameras Canon600D,NikonD40] [--lights 0,1,5,all]
         [--models prior,locus,kernel,pooled] [--content cg,real] [--estimators cnn,moments]
         [--seeds 1] [--n 300] [--draws 1] --out out/few_lights.jsonl
+    python benchmarks/few_lights.py --summary --out out/few_lights.jsonl
+    python benchmarks/few_lights.py --energy
 
 Every finished (camera, row, content, estimator, seed, fold, draw) is one line of `--out`, so a run
 stopped early keeps what it did and a rerun with the same `--out` skips it; `--summary` prints
@@ -177,6 +179,51 @@ def summary(path: Path) -> str:
     return "\n".join(out)
 
 
+def curve(path: Path, content: str, estimator: str) -> str:
+    """Markdown table: models as rows, light counts as columns, the mean of the cameras that have
+    every cell of the table (each camera: the mean over its folds, draws and seeds)."""
+    records = [json.loads(line) for line in path.read_text().splitlines()]
+    records = [r for r in records if r["content"] == content and r["estimator"] == estimator]
+    counts = [c for c in ("0", "1", "3", "5", "10", "25", "all") if any(str(r["lights"]) == c for r in records)]
+    models = [m for m in ("shipped", *MODELS) if any(r["model"] == m for r in records)]
+    cells = {}
+    for r in records:
+        cells.setdefault((r["model"], str(r["lights"]), r["camera"]), []).append(r["mean"])
+    keys = {(m, c) for m, c, _ in cells}
+    cameras = sorted(cam for cam in {k[2] for k in cells} if all((m, c, cam) in cells for m, c in keys))
+    out = [f"| model ({content}, {estimator}; mean of {len(cameras)} cameras) | " + " | ".join(counts) + " |",
+           "|---|" + "---|" * len(counts)]
+    for m in models:
+        values = [np.mean([np.mean(cells[(m, c, cam)]) for cam in cameras]) if (m, c) in keys else None
+                  for c in counts]
+        out.append(f"| {m} | " + " | ".join("" if v is None else f"{v:.2f}" for v in values) + " |")
+    return "\n".join(out) + f"\n\ncameras: {', '.join(cameras)}"
+
+
+def energy_table(cameras) -> str:
+    """Markdown: energy distance (`distributions.energy_distance`, Szekely & Rizzo 2013) between 2000
+    draws of each zero-light model and all of the camera's measured NUS lights; `pooled` leaves the
+    camera out, `pooled-gs` all nine NUS cameras."""
+    import jax
+
+    from g2r_jax.illuminants import choice, distributions as il
+
+    out = ["| camera | prior | locus | pooled | pooled-gs |", "|---|---|---|---|---|"]
+    table = []
+    for camera in cameras:
+        profile = camera_profile(camera)
+        lights = il.neutral_to_chromaticity(np.load(NUS / f"{camera}.npz")["illuminants"].astype(np.float64))
+        models = [choice.choose_illuminant_model(np.zeros((0, 2)), profile.colour, k).model for k in ("prior", "locus")]
+        models += [choice.fit_pooled_for_camera(np.zeros((0, 2)), profile.colour, exclude=e)[0]
+                   for e in ((camera,), CAMERAS)]
+        row = [il.energy_distance(il.neutral_to_chromaticity(np.asarray(
+            il.sample_neutrals(jax.random.PRNGKey(0), m, 2000), np.float64)), lights) for m in models]
+        table.append(row)
+        out.append(f"| {camera} | " + " | ".join(f"{v:.4f}" for v in row) + " |")
+    out.append("| mean | " + " | ".join(f"{v:.4f}" for v in np.mean(table, axis=0)) + " |")
+    return "\n".join(out)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cameras", default=",".join(CAMERAS))
@@ -189,13 +236,20 @@ def main(argv=None) -> int:
     parser.add_argument("--draws", type=int, default=3)
     parser.add_argument("--out", type=Path, default=Path("out/few_lights.jsonl"))
     parser.add_argument("--summary", action="store_true", help="print the table of --out and stop")
+    parser.add_argument("--energy", action="store_true", help="print the zero-light models' energy distance "
+                        "to each camera's measured lights and stop")
     args = parser.parse_args(argv)
     if args.summary:
         print(summary(args.out))
+        for content, estimator in sorted({(r["content"], r["estimator"]) for r in map(json.loads, args.out.read_text().splitlines())}):
+            print("\n" + curve(args.out, content, estimator))
         return 0
     if not NUS.is_dir() or not CARLA.is_dir():
         print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
         return 2
+    if args.energy:
+        print(energy_table(args.cameras.split(",")))
+        return 0
     from g2r_jax.runtime import compile_cache
 
     compile_cache.enable(program="g2r_jax-downstream")
