@@ -224,7 +224,7 @@ DIM = BurstTruth(black_tag=60.0, white=1023.0, shot=5.2e-4, read=2.4e-6, iso=100
 
 def _ranked_check(tmp_path, base_profile, truth, low, high, blur):
     """The check on a burst of known truth: rows truth, UPI, a profile with 4x too little noise,
-    real pairs; content-equal; two seeds; steps chosen by validation (cap 1500)."""
+    real pairs; content-equal; two seeds; steps chosen by validation (cap 600)."""
     folder = tmp_path / "burst"
     profile = truth_profile(base_profile, truth)
     bursts.write_synthetic_burst(folder, profile, n_frames=8, height=96, width=128, iso=truth.iso, seed=5,
@@ -233,7 +233,7 @@ def _ranked_check(tmp_path, base_profile, truth, low, high, blur):
     burst = bursts.read_burst(folder)
     assert all(info.noise_profile is None for info in burst.infos)
     result = denoising.run_burst_check(burst, low_noise, rows=("upi", "shipped", "truth", "real"),
-                                       contents=("scene",), seeds=(0, 1), max_steps=1500,
+                                       contents=("scene",), seeds=(0, 1), max_steps=600,
                                        truth_noise=(truth.shot, truth.read))
     return result
 
@@ -245,7 +245,7 @@ def _assert_ranked(result):
     for other in ("upi", "shipped"):
         assert not_below("truth", other), (other, psnr)
     assert np.mean(psnr["truth"]) > result.noisy_psnr + 1.0, (psnr, result.noisy_psnr)
-    assert result.step_curve and result.steps <= 1500
+    assert result.step_curve and result.steps <= 600
 
 
 @pytest.mark.slow

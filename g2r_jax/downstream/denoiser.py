@@ -71,13 +71,14 @@ def init_denoiser(key, width: int = WIDTH, depth: int = DEPTH) -> ResidualDenois
 @functools.lru_cache(maxsize=None)
 def step_loss_for(noise_fn: Callable | None):
     """The loss of one step for `fit`: step_input (key, inputs, targets) crops, data (gain,
-    noise_data); with `noise_fn(key, targets, noise_data)` the inputs are drawn from the targets,
-    else the given inputs (real pairs) are used. L2 in the gained units."""
+    noise_data); with `noise_fn(key, inputs, noise_data)` the noisy inputs are drawn on the given
+    inputs (clean content, or a mean of frames whose own residual noise the draw completes),
+    else the given inputs are used as they are (real pairs). L2 in the gained units."""
 
     def step_loss(model, step_input, data):
         key, inputs, targets = step_input
         gain, noise_data = data
-        noisy = inputs if noise_fn is None else noise_fn(key, targets, noise_data)
+        noisy = inputs if noise_fn is None else noise_fn(key, inputs, noise_data)
         return jnp.mean(((model(noisy, gain) - targets) * gain) ** 2)
 
     return step_loss
@@ -116,8 +117,9 @@ def train_denoiser(key, targets, *, inputs=None, noise_fn=None, noise_data=None,
                    steps: int = 1000, training: DenoiserTraining = DenoiserTraining(), validation=None,
                    patience: int | None = None, min_improvement: float = 0.02):
     """Train a `ResidualDenoiser` for at most `steps` Adam steps (rounded up to whole rounds) on
-    random crops of `targets` (N, 4, h, w): inputs are `noise_fn`'s draws (synthetic rows) or the
-    crops of `inputs` at the same places (real pairs).
+    random crops of `targets` (N, 4, h, w) and of `inputs` (default: the targets) at the same
+    places: the noisy inputs are `noise_fn`'s draws on the input crops (synthetic rows), or the
+    input crops themselves (real pairs).
 
     With `validation` (noisy crops, reference crops, both (V, 4, p, p)), the model of the round
     with the lowest validation error is kept and training stops once `patience` rounds in a row

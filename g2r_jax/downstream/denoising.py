@@ -33,10 +33,14 @@ rows only when their seeds' ranges do not overlap, "within training noise" other
 Contents: `cg` (CG images, e.g. CARLA frames, made clean RAW by `g2r_jax.unprocess_batch` with
 the profile at the burst's ISO, then brought to the burst's own signal levels by `match_levels`:
 each frame's median and 99th percentile set to the scene's; then each row's noise) and `scene`
-(the burst's own clean reference, the mean of the training frames: content-equal, the
-discriminating test of the noise model). The scene mean of m frames still holds 1/m of the true
-noise variance, so the rows add (1 - 1/m) of their model's variance on it: a true model then
-gives the true total. Synthetic inputs are rounded to the burst's DN and clipped to [0,
+(the burst's own scene: content-equal, the discriminating test of the noise model). The
+training frames are split in two interleaved halves; the input is the mean of one half (m
+frames, holding 1/m of the true noise variance) plus (1 - 1/m) of the row's model variance, so
+a true model gives the true total, and the target is the mean of the other half: a noisy target
+independent of the input (Noise2Noise, Lehtinen et al., ICML 2018), so the denoiser learns to
+remove the mean's residual noise too instead of keeping it as texture (with the half's own mean
+as the target, a dim defocused scene, whose texture is all noise, cost the true models 1.8 dB
+against real pairs). Both halves serve in turn as input and target. Synthetic inputs are rounded to the burst's DN and clipped to [0,
 WhiteLevel] like real frames. The noise parameters of `fitted` and `truth`, the PSNR peak, the
 denoiser's input gain and the CG levels come from all frames (a few numbers; the test frames'
 share in them is negligible); everything else of the `scene` and `real` rows from the training
@@ -461,8 +465,11 @@ def _train_row(key, burst: Burst, row: str, spec, content: str, train, cg_planes
         targets = np.stack([burst.mean_of_others(i, train) for i in train])
         return train_denoiser(key, targets, inputs=burst.planes[train], gain=gain, steps=steps,
                               training=training).model
-    noise_fn, noise_data = _row_noise(spec, burst, 1.0 - 1.0 / len(train))
-    return train_denoiser(key, burst.planes[train].mean(0)[None], noise_fn=noise_fn, noise_data=noise_data,
+    pairs = len(train) // 2    # two halves of equal size (an odd frame left out), so one noise factor fits both
+    halves = (train[0:2 * pairs:2], train[1:2 * pairs:2])
+    noise_fn, noise_data = _row_noise(spec, burst, 1.0 - 1.0 / len(halves[0]))
+    means = np.stack([burst.planes[half].mean(0) for half in halves])
+    return train_denoiser(key, means[::-1], inputs=means, noise_fn=noise_fn, noise_data=noise_data,
                           gain=gain, steps=steps, training=training).model
 
 
