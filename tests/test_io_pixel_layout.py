@@ -181,3 +181,41 @@ def test_real_gopro_dng_with_lying_tags_is_refused(tmp_path):
         with pytest.raises(DngError, match=f"gopro_bad.dng: .*{problem}"):
             read_dng_pixels(path)
     assert read_dng_pixels(GOPRO).shape == (3000, 4000)
+
+
+def test_the_audit_loader_leaves_out_each_corrupt_file_by_name(seeds, tmp_path):
+    """g2r-diagnose reads its DNGs with `load_measured`: each corrupt file of issue 34's classes is
+    left out with a line naming it, the good file is kept with its pixels."""
+    from g2r_jax.audit.loading import load_measured
+
+    data = seeds["plain"].read_bytes()
+    entries = ft.raw_entries(data)
+    width = ft.current(data, entries, 256)
+    bad = []
+    for code, value in ((258, 8), (258, 12), (258, 0), (258, 1), (256, width - 1), (273, 0)):
+        bad.append(tmp_path / f"bad_{code}_{value}.dng")
+        bad[-1].write_bytes(ft.with_value(data, entries, code, value))
+    lines = []
+    loaded = load_measured([seeds["plain"]] + bad, on_error=lines.append)
+    assert len(loaded) == 1 and np.array_equal(loaded[0][0], seeds["mosaic"][:96, :128])
+    assert len(lines) == len(bad) and all(path.name in line for path, line in zip(bad, lines))
+
+
+@pytest.mark.slow
+def test_fit_profile_names_each_corrupt_file_and_fits_the_good_ones(seeds, tmp_path):
+    import fuzz_harness as fh
+    from g2r_jax.cli.fit_profile import main as fit_main
+
+    data = seeds["plain"].read_bytes()
+    entries = ft.raw_entries(data)
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for k in range(2):
+        (folder / f"good{k}.dng").write_bytes(data)
+    for code, value in ((258, 8), (256, ft.current(data, entries, 256) - 1), (273, 0)):
+        (folder / f"bad_{code}.dng").write_bytes(ft.with_value(data, entries, code, value))
+    status, _, err = fh.run_main(fit_main, [str(folder), "-o", str(tmp_path / "p.json")])
+    assert status == 1 and (tmp_path / "p.json").exists()
+    for code in (258, 256, 273):
+        assert f"bad_{code}.dng" in err
+    assert "Traceback" not in err

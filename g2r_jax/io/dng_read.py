@@ -570,7 +570,7 @@ def _check_pixel_layout(info: DngInfo, raw, pages, handle, byteorder: str, file_
     """Refuse tags that contradict the pixel data; note pixel data that is missing or that this
     LibRaw cannot decode (tags still usable: `info.pixel_data_problem`)."""
     info.compression = int(raw.compression)
-    found = layout_problem(raw, pages, handle, file_size)
+    found = layout_problem(raw, pages, handle, file_size, byteorder)
     refusal = found.refusal or bits_problem(info.bits_per_sample, info.white_level,
                                             info.linearization_table is not None)
     if refusal is None and found.warning is None and info.linearization_table is None:

@@ -36,6 +36,8 @@ __all__ = ["LayoutProblem", "layout_problem", "stored_values_problem", "bits_pro
 _OFFSET_TAGS = {"strips": (273, 279), "tiles": (324, 325)}   # (offsets, byte counts)
 _HEADER_BYTES = 8            # TIFF header: byte order, 42, offset of IFD0
 _IFD_ENTRY_BYTES = 12
+_POINTER_TAGS = (34665, 34853)   # ExifIFD, GPSInfo: offsets of IFDs of their own
+_TYPE_BYTES = {1: 1, 2: 1, 3: 2, 4: 4, 5: 8, 6: 1, 7: 1, 8: 2, 9: 4, 10: 8, 11: 4, 12: 8, 13: 4}   # TIFF 6.0 section 2
 _LOSSLESS_JPEG = 7
 _UNCOMPRESSED = 1
 _PHOTOMETRIC_CFA = 32803
@@ -109,9 +111,28 @@ def _layout(page) -> _Layout:
                    _values(page, offsets_code), _values(page, counts_code))
 
 
-def _structure_ranges(pages) -> list:
+def _pointed_ifd_ranges(handle, byteorder: str, offset: int, file_size: int) -> list:
+    """(start, end, what) of an IFD that a pointer tag names (EXIF 34665, GPS 34853; TIFF 6.0
+    section 2: a 2-byte entry count, 12-byte entries, a 4-byte next offset) and of its entries'
+    values stored outside them; [] when it cannot be read."""
+    if not 0 < offset < file_size - 2:
+        return []
+    handle.seek(offset)
+    count = int(np.frombuffer(handle.read(2), np.dtype(np.uint16).newbyteorder(byteorder))[0])
+    entries = handle.read(_IFD_ENTRY_BYTES * count)
+    ranges = [(offset, offset + 2 + _IFD_ENTRY_BYTES * count + 4, f"the IFD at byte {offset}")]
+    entry = np.dtype([("code", "u2"), ("type", "u2"), ("count", "u4"), ("value", "u4")]).newbyteorder(byteorder)
+    for code, kind, number, value in np.frombuffer(entries[: len(entries) // 12 * 12], entry).tolist():
+        size = _TYPE_BYTES.get(kind, 1) * number
+        if size > 4:
+            ranges.append((value, value + size, f"the value of tag {code}"))
+    return ranges
+
+
+def _structure_ranges(pages, handle=None, byteorder: str = "<", file_size: int = 0) -> list:
     """(start, end, what) of the TIFF header, each IFD's entries and each tag value stored
-    outside its entry: bytes that pixel data must not share."""
+    outside its entry (the EXIF and GPS IFDs' too, when `handle` is given): bytes that pixel data
+    must not share."""
     ranges = [(0, _HEADER_BYTES, "the TIFF header")]
     for page in pages:
         start = int(page.offset)
@@ -120,7 +141,17 @@ def _structure_ranges(pages) -> list:
             size = int(tag.valuebytecount)
             if size > 4 and int(tag.valueoffset) != int(tag.offset) + 8:   # stored outside the entry
                 ranges.append((int(tag.valueoffset), int(tag.valueoffset) + size, f"the value of tag {tag.code}"))
+            if tag.code in _POINTER_TAGS and handle is not None:
+                pointer = np.frombuffer(_entry_value_bytes(handle, tag), np.dtype(np.uint32).newbyteorder(byteorder))
+                if pointer.size:
+                    ranges += _pointed_ifd_ranges(handle, byteorder, int(pointer[0]), file_size)
     return ranges
+
+
+def _entry_value_bytes(handle, tag) -> bytes:
+    """The 4 bytes of a pointer tag's value field, as stored (8 bytes into its entry)."""
+    handle.seek(int(tag.offset) + 8)
+    return handle.read(4)
 
 
 def _geometry_refusal(layout: _Layout) -> Optional[str]:
@@ -142,12 +173,13 @@ def _geometry_refusal(layout: _Layout) -> Optional[str]:
     return None
 
 
-def _overlap_refusal(layout: _Layout, pages) -> Optional[str]:
+def _overlap_refusal(layout: _Layout, pages, handle, byteorder: str, file_size: int) -> Optional[str]:
     """Pixel data must lie beside the file's structure, and segments beside each other (two
     segments at the same place, a writer's shared tile, are allowed)."""
     segments = sorted(set(zip(layout.offsets, layout.counts)))
+    structure = _structure_ranges(pages, handle, byteorder, file_size)
     for offset, count in segments:
-        for start, end, what in _structure_ranges(pages):
+        for start, end, what in structure:
             if count > 0 and offset < end and start < offset + count:
                 return (f"pixel data at bytes {offset}..{offset + count} lies on {what}: "
                         f"{'StripOffsets' if layout.kind == 'strips' else 'TileOffsets'} is wrong")
@@ -248,12 +280,12 @@ def _segment_count_refusal(layout: _Layout) -> Optional[str]:
             f"need {expected}: size tags disagree with the data")
 
 
-def layout_problem(page, pages, handle, file_size: int) -> LayoutProblem:
+def layout_problem(page, pages, handle, file_size: int, byteorder: str = "<") -> LayoutProblem:
     """Check the raw IFD `page` (a tifffile TiffPage) against the file: `pages` are the IFDs read
     (their entries and values must not be overwritten by pixel data), `handle` a binary file
     object of the DNG (to read a lossless JPEG frame header). Returns what was found."""
     layout = _layout(page)
-    refusal = _geometry_refusal(layout) or _overlap_refusal(layout, pages)
+    refusal = _geometry_refusal(layout) or _overlap_refusal(layout, pages, handle, byteorder, file_size)
     if refusal is None and layout.compression in (_UNCOMPRESSED, _LOSSLESS_JPEG):
         refusal = _segment_count_refusal(layout)
     if refusal is None and layout.compression == _UNCOMPRESSED and _data_present(layout):
