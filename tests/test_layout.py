@@ -92,9 +92,9 @@ def test_imports_inside_functions_count(tmp_path):
 
 # The rooms from the bottom up (design.md, "The shape"; issue 35): a module imports only its own
 # room's modules and those of rooms below it. Rooms on one line are peers.
-LAYERS = (("io",), ("measure",), ("sensor",), ("colour",), ("illuminants",), ("content",), ("profile", "pipeline"),
-          ("batch",), ("audit",), ("downstream",), ("cli",))
-UTILITIES = ("runtime", "examples")   # any room may import these; they import none of the rooms
+LAYERS = (("io",), ("measure",), ("sensor",), ("colour",), ("examples", "illuminants"), ("content",),
+          ("profile", "pipeline"), ("batch",), ("audit",), ("downstream",), ("cli",))
+UTILITIES = ("runtime",)              # any room may import these; they import none of the rooms
 TOP = "g2r_jax"                       # the public API: imports anything; imported as the audit's peer
 _TOP_LAYER = next(k for k, rooms in enumerate(LAYERS) if "audit" in rooms)   # it re-exports `diagnose`
 
