@@ -173,9 +173,10 @@ def test_inputs_are_not_modified(seeds, tmp_path):
 def test_real_gopro_dng_with_lying_tags_is_refused(tmp_path):
     data = GOPRO.read_bytes()
     entries = ft.raw_entries(data)
-    width = ft.current(data, entries, 256)
+    width, offset = ft.current(data, entries, 256), ft.current(data, entries, 273)
     for code, value, problem in ((258, 8, "bytes"), (258, 12, "bytes"), (258, 0, "BitsPerSample 0"),
-                                 (258, 1, "bytes"), (256, width - 1, "(bytes|ActiveArea)"), (273, 0, "TIFF header")):
+                                 (258, 1, "bytes"), (256, width - 1, "(bytes|ActiveArea)"), (273, 0, "TIFF header"),
+                                 (273, offset - 8, "lies on the value of tag")):   # onto the GPS IFD's values
         path = tmp_path / "gopro_bad.dng"
         path.write_bytes(ft.with_value(data, entries, code, value))
         with pytest.raises(DngError, match=f"gopro_bad.dng: .*{problem}"):
