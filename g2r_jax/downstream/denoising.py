@@ -315,8 +315,12 @@ class DenoisingResult:
         """The verdict, the table, the noise models and the protocol in a few lines."""
         noise = "\n".join(f"- {ROW_NAMES[r]}: {d}" for r, d in self.noise.items())
         skipped = "; ".join(f"{n}: {w}" for n, w in self.skipped) or "none"
-        chosen = (f"{self.steps} steps (chosen on a validation split of the burst: real pairs' validation "
-                  f"error converged)" if self.step_curve else f"{self.steps} steps (as given)")
+        chosen = f"{self.steps} steps (as given)"
+        if self.step_curve:
+            gain = self.step_curve[-2] - self.step_curve[-1] if len(self.step_curve) > 1 else float("inf")
+            chosen = (f"{self.steps} steps (chosen on a validation split of the burst: " +
+                      ("real pairs' validation error converged)" if gain <= MIN_GAIN_DB else
+                       f"the cap, NOT converged: the validation error still gained {gain:.2f} dB in the last round)"))
         return (f"{self.sentence()}\n\n{len(self.frames)} frames at ISO {self.iso:g}, {self.folds} folds, seeds "
                 f"{list(self.seeds)}, {chosen}, {self.cg_images} CG images{self.cg_levels}; PSNR peak = the "
                 f"scene's {100 * PEAK_QUANTILE:g}th percentile ({self.peak:.4g} of WhiteLevel - BlackLevel), "
