@@ -263,17 +263,22 @@ def _missing_warning(layout: _Layout, file_size: int) -> Optional[str]:
     return None
 
 
-def _data_present(layout: _Layout) -> bool:
-    """Whether the segments hold pixel data (at least one bit per sample, or `_TOKEN_BYTES`), as
-    against a header-only file whose pixel data was left out."""
+def _data_present(layout: _Layout, file_size: int) -> bool:
+    """Whether the segments hold pixel data (at least one bit per sample, or `_TOKEN_BYTES`; for
+    uncompressed data, also when the file holds the whole image after the first offset, whatever
+    the byte counts say), as against a header-only file whose pixel data was left out."""
     samples = layout.width * layout.height * layout.samples * layout.planes
-    return sum(layout.counts) >= min(samples // 8, _TOKEN_BYTES)
+    if sum(layout.counts) >= min(samples // 8, _TOKEN_BYTES):
+        return True
+    whole = layout.row_bytes() * layout.height * layout.planes
+    return layout.compression == _UNCOMPRESSED and bool(layout.offsets) and \
+        file_size - min(layout.offsets) >= whole
 
 
-def _segment_count_refusal(layout: _Layout) -> Optional[str]:
+def _segment_count_refusal(layout: _Layout, file_size: int) -> Optional[str]:
     """With the pixel data present, the number of segments must be the one the size tags give."""
     expected = layout.expected_segments()
-    if len(layout.offsets) == expected or not _data_present(layout):
+    if len(layout.offsets) == expected or not _data_present(layout, file_size):
         return None
     return (f"{len(layout.offsets)} {layout.kind} of pixel data, but ImageWidth x ImageLength "
             f"{layout.width}x{layout.height} in {layout.kind} of {layout.segment_width}x{layout.segment_rows} "
@@ -287,8 +292,8 @@ def layout_problem(page, pages, handle, file_size: int, byteorder: str = "<") ->
     layout = _layout(page)
     refusal = _geometry_refusal(layout) or _overlap_refusal(layout, pages, handle, byteorder, file_size)
     if refusal is None and layout.compression in (_UNCOMPRESSED, _LOSSLESS_JPEG):
-        refusal = _segment_count_refusal(layout)
-    if refusal is None and layout.compression == _UNCOMPRESSED and _data_present(layout):
+        refusal = _segment_count_refusal(layout, file_size)
+    if refusal is None and layout.compression == _UNCOMPRESSED and _data_present(layout, file_size):
         refusal = _uncompressed_refusal(layout)
     warning = None if refusal else _missing_warning(layout, file_size)
     if refusal is None and warning is None and layout.compression == _LOSSLESS_JPEG:
