@@ -162,3 +162,18 @@ def test_find_bursts_groups_files_by_thumbnail_up_to_a_gain():
     files = ([file(scene * g) for g in (1.0, 1.02, 0.97)] + [file(other)] + [file(scene, dark_frame=True)]
              + [file(scene * 1.01), file(scene, iso=800.0)])
     assert bursts.find_bursts(files) == [[0, 1, 2, 5]]
+
+
+def test_duplicate_groups_by_hash_do_not_depend_on_order():
+    from g2r_jax.measure import duplicate_groups
+
+    rng = np.random.default_rng(3)
+    arrays = [rng.random((4, 4)) for _ in range(5)]
+    arrays += [arrays[1].copy(), arrays[3].copy()]
+    labels = duplicate_groups(arrays, order="hash")
+    shuffled = duplicate_groups(arrays[::-1], order="hash")[::-1]
+    assert np.array_equal(labels, shuffled)
+    assert labels[5] == labels[1] and labels[6] == labels[3] and len(set(labels.tolist())) == 5
+    assert duplicate_groups([np.zeros((2, 3)), np.zeros((3, 2))]).tolist() == [0, 1]   # same bytes, other shape
+    with pytest.raises(ValueError, match="order"):
+        duplicate_groups(arrays, order="sorted")

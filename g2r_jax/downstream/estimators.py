@@ -310,8 +310,8 @@ def _pad(array: np.ndarray, rows: int) -> np.ndarray:
 def _split(images: np.ndarray, fraction: float, limit: int, rng: np.random.Generator):
     """Training / validation indices: a random `fraction` of the distinct images (at most `limit`
     of them, at least one) held out; identical images (a set repeated to size; found by
-    `measure.duplicate_groups`) stay on one side."""
-    groups = duplicate_groups(images)
+    `measure.duplicate_groups`, numbered by digest as the release before it drew them) stay on one side."""
+    groups = duplicate_groups(images, order="hash")
     distinct = np.unique(groups)
     if len(distinct) < 2:
         raise ValueError("cnn: the training set needs at least two distinct images (one is held out "

@@ -33,17 +33,24 @@ def folds_of(n: int, k: int, seed: int = 0, *, groups=None) -> list[np.ndarray]:
 
 
 def pixel_hash(array) -> str:
-    """A digest of an array's shape, dtype and bytes: equal for the same pixels under any name."""
-    array = np.ascontiguousarray(array)
-    digest = hashlib.blake2b(digest_size=16)
-    digest.update(f"{array.dtype.str}{array.shape}".encode())
-    digest.update(array.data)
-    return digest.hexdigest()
+    """A digest of an array's bytes (BLAKE2b, 16 bytes, hex): equal for the same pixels under any
+    name. Hex digests sort as their bytes do, so a set ordered by them is ordered as by the digests."""
+    return hashlib.blake2b(np.ascontiguousarray(array).tobytes(), digest_size=16).hexdigest()
 
 
-def duplicate_groups(arrays) -> np.ndarray:
-    """(n,) group labels: arrays with the same pixels (by `pixel_hash`) share a label."""
-    labels, seen = [], {}
-    for array in arrays:
-        labels.append(seen.setdefault(pixel_hash(array), len(seen)))
-    return np.asarray(labels, int)
+def duplicate_groups(arrays, *, order: str = "appearance") -> np.ndarray:
+    """(n,) group labels: arrays with the same shape, dtype and pixels (by `pixel_hash`) share a label.
+
+    `order`: "appearance" numbers the groups as they first occur (a set without copies gets
+    0..n-1, so `folds_of(..., groups=...)` gives the folds drawn without groups); "hash" numbers
+    them by their digest (a labelling that does not depend on the arrays' order).
+    """
+    keys = [(np.shape(a), np.asarray(a).dtype.str, pixel_hash(a)) for a in arrays]
+    if order == "hash":
+        ranks = sorted(set(keys), key=lambda key: key[2])
+        index = {key: i for i, key in enumerate(ranks)}
+        return np.asarray([index[key] for key in keys], int)
+    if order != "appearance":
+        raise ValueError(f"order must be 'appearance' or 'hash', not {order!r}")
+    seen = {}
+    return np.asarray([seen.setdefault(key, len(seen)) for key in keys], int)
