@@ -129,7 +129,7 @@ def test_profile_json_round_trip_keeps_the_prior_kind(tmp_path):
     info = DngInfo(path="x.dng", cfa_pattern=(0, 1, 1, 2), black_level=np.zeros(4), white_level=4095.0,
                    calibration_illuminants=(17, 21), color_matrices=(CM_A, CM_D65), unique_camera_model="Cam",
                    as_shot_neutral=np.array([0.5, 1, 0.6]))
-    profile = fit_profile([info])
+    profile = fit_profile([info], illuminant_model="prior")
     save_profile(profile, tmp_path / "p.json")
     loaded = load_profile(tmp_path / "p.json")
     assert loaded.illuminants.kind == "prior" and loaded.illuminants.use_hull

@@ -331,11 +331,11 @@ def _with_content_model(profile, infos, args):
     model, used = content_model_from_files(infos, read, on_error=lambda info, problem: skipped.append(info.path))
     if not args.quiet:
         if model is None:
-            print("g2r-fit-profile: note: no content model (no file gave scene statistics)", file=sys.stderr)
+            print("g2r-fit-profile: note: no content model (no file gave scene statistics)")
         else:
             print(f"g2r-fit-profile: content model: {model.family}, chroma scale {float(model.chroma_scale):.2f} "
                   f"from {used} file(s)' scene statistics; stored off (g2r-convert --content-model applies it)"
-                  + (f"; {len(skipped)} file(s) too small or without a neutral" if skipped else ""), file=sys.stderr)
+                  + (f"; {len(skipped)} file(s) too small or without a neutral" if skipped else ""))
     return profile if model is None else replace(profile, content=model)
 
 
