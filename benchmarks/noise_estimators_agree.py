@@ -9,6 +9,7 @@ import sys, tempfile, numpy as np
 from pathlib import Path
 from g2r_jax.audit.synthetic_bursts import BurstTruth, burst, scene_signal
 from g2r_jax.audit import bursts
+from g2r_jax.measure.photon_transfer import temporal_nlf
 from g2r_jax.audit.evidence import nlf_edges
 from g2r_jax.io.dng_write import write_dng
 from g2r_jax.io.dng_read import read_dng_info
@@ -24,7 +25,7 @@ for name, truth, low, high in (("10-bit", BurstTruth(black_tag=64, white=1023, s
         info.cfa_pattern = (0, 1, 1, 2); info.calibration_illuminants = tags['calibration_illuminants']; info.color_matrices = tags['color_matrices']; info.illuminant_data = tags['illuminant_data']; p = d / f"f{k}.dng"; write_dng(p, m, info); infos.append(read_dng_info(p))
     (shot, read), _ = fallback.measure_pooled(infos)
     frames = np.stack([bursts.frame_planes(m, i.black_level, i.white_level, 0.0) for m, i in files])
-    t = bursts.temporal_nlf(frames, pedestal=np.zeros(4), clip=np.full(4, 0.95), clip_low=np.full(4, -0.06), edges=nlf_edges())["all"]
+    t = temporal_nlf(frames, pedestal=np.zeros(4), clip=np.full(4, 0.95), clip_low=np.full(4, -0.06), edges=nlf_edges())["all"]
     q = 1 / 12 / truth.span**2
     # photon transfer fit of the temporal NLF: var = s x + r, weighted least squares
     ok = np.isfinite(t.variance)

@@ -12,6 +12,7 @@ import pytest
 
 import g2r_jax
 from g2r_jax.audit import black_evidence, bursts, diagnose
+from g2r_jax.measure.photon_transfer import temporal_nlf
 from g2r_jax.audit.causes import BY_NAME
 from g2r_jax.audit.evidence import nlf_edges
 from g2r_jax.audit.synthetic_bursts import BurstTruth, burst, scene_signal, truth_profile
@@ -34,7 +35,7 @@ def test_temporal_noise_is_the_truth_despite_fixed_pattern_noise():
     truth = TEN_BIT
     signal = scene_signal(1, 128, 192, low=0.01, high=0.2, fine=True)
     frames = [bursts.frame_planes(m, i.black_level, i.white_level, 0.0) for m, i in burst(truth, signal, 8, seed=2)]
-    found = bursts.temporal_nlf(np.stack(frames), pedestal=np.zeros(4), clip=np.full(4, 0.9),
+    found = temporal_nlf(np.stack(frames), pedestal=np.zeros(4), clip=np.full(4, 0.9),
                                 clip_low=np.full(4, -0.05), edges=nlf_edges())["all"]
     ok = np.isfinite(found.variance)
     model = truth.shot * found.signal + truth.read + 1 / 12 / truth.span**2

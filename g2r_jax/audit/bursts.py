@@ -1,19 +1,14 @@
-"""Bursts among the audit's measured files, and the noise they measure without any model of the
-scene: the measurement toolkit's burst finding (`g2r_jax.measure.bursts.find_bursts`, on the
-files' thumbnails, `stats.thumbnail`) and temporal noise level function
+"""Burst frames put above the sensor's black the audit's way (`frame_planes`), for the toolkit's
+burst finding (`g2r_jax.measure.bursts.find_bursts`) and temporal noise level function
 (`g2r_jax.measure.photon_transfer.temporal_nlf`: per CFA position and signal bin, for all pixels
-and for the two checkerboard halves "A", "B" of the fit / held-out split of
-`causes.noise_model`), on frames put above the sensor's black the audit's way (`frame_planes`).
+and for the two checkerboard halves "A", "B" of the fit / held-out split of `causes.noise_model`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from g2r_jax.measure.bursts import MIN_FRAMES, find_bursts
-from g2r_jax.measure.photon_transfer import TemporalNoise, temporal_nlf
-
-__all__ = ["MIN_FRAMES", "MAX_PIXELS", "TemporalNoise", "find_bursts", "frame_planes", "temporal_nlf"]
+__all__ = ["MAX_PIXELS", "frame_planes"]
 
 MAX_PIXELS = 3_000_000       # pixels per frame kept for the temporal statistics (whole rows, strided)
 

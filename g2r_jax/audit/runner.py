@@ -21,6 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from g2r_jax.io.dng_info import DngError
+from g2r_jax.measure.bursts import find_bursts
+from g2r_jax.measure.photon_transfer import temporal_nlf
 from g2r_jax.batch.conversion import file_key
 from g2r_jax.audit import (black_evidence, bursts, content_report, evidence, gain, loading, scene_pedestal, simulate,
                            stats)
@@ -526,16 +528,16 @@ def measured_black(files, profile):
 def independent_files(files):
     """(units, bursts): the measured files that are independent scenes (dark frames left out;
     a burst's frames count once, by its first frame, which carries the burst's temporal noise),
-    and the bursts (index lists, `bursts.find_bursts`). Frames of one scene share the scene's
+    and the bursts (index lists, `measure.bursts.find_bursts`). Frames of one scene share the scene's
     statistics, so counting them as files would make a test over files see the scene N times."""
-    groups = bursts.find_bursts(files)
+    groups = find_bursts(files)
     later = {i for group in groups for i in group[1:]}
     units = [f for i, f in enumerate(files) if not f.get("dark_frame") and i not in later]
     return units, groups
 
 
 def burst_noise(items, first, profile, pedestal_dn=None) -> dict:
-    """The temporal noise (`bursts.temporal_nlf`) of the burst of `items` (paths or in-memory
+    """The temporal noise (`measure.photon_transfer.temporal_nlf`) of the burst of `items` (paths or in-memory
     pairs), `first` the statistics of its first frame."""
     frames, info = [], None
     for item in items:
@@ -547,7 +549,7 @@ def burst_noise(items, first, profile, pedestal_dn=None) -> dict:
     pedestal = np.resize(pedestal, 4) / span
     clip = np.where(np.isfinite(first["clip"]) & (first["clip"] < 1.0), first["clip"], 1.0 - pedestal) - 2.0 / span
     clip_low = -black / span - pedestal + 2.0 / span
-    return bursts.temporal_nlf(np.stack(frames), pedestal=pedestal, clip=clip, clip_low=clip_low,
+    return temporal_nlf(np.stack(frames), pedestal=pedestal, clip=clip, clip_low=clip_low,
                                edges=evidence.nlf_edges())
 
 

@@ -129,12 +129,12 @@ def _large(files) -> list:
 
 
 def _bursts(files) -> list:
-    """The files that carry a burst's temporal noise (`bursts.temporal_nlf`, key "temporal")."""
+    """The files that carry a burst's temporal noise (`measure.photon_transfer.temporal_nlf`, key "temporal")."""
     return [f for f in files if f.get("temporal") is not None]
 
 
 def temporal_log_ratio(profile, f, half: str):
-    """(L, se, signal) of a burst's temporal noise (`bursts.TemporalNoise`, one `half` of its
+    """(L, se, signal) of a burst's temporal noise (`measure.photon_transfer.TemporalNoise`, one `half` of its
     pixels): log(measured / model variance) per (position, bin), its standard error, the signal."""
     e = f["temporal"][half]
     with np.errstate(invalid="ignore", divide="ignore"):
