@@ -204,29 +204,33 @@ def fit_speed(count: int) -> str:
 
 
 def apply_speed(repeats: int = 5) -> str:
-    """CPU time of one jitted `unprocess` of a 1000 x 1500 sRGB frame with the content model on and
-    off (the same compiled shapes; best of `repeats` after a warm-up)."""
+    """CPU time of one jitted `unprocess` of a 1000 x 1500 sRGB frame with the content model off,
+    on as 'chroma' (folded into the colour matrix) and on as 'chroma_tone' (a pass over the pixels
+    with the image's peak), measured in turns (best of `repeats` per turn after a warm-up)."""
     import jax
 
     import g2r_jax
     from g2r_jax.content import content_model
     from g2r_jax.profile.schema import replace
 
-    profile = replace(g2r_jax.load_profile("Canon600D"), content=content_model(0.35))
+    base = g2r_jax.load_profile("Canon600D")
+    variants = {"off": (base, False), "chroma": (replace(base, content=content_model(0.35)), True),
+                "chroma_tone": (replace(base, content=content_model(0.35, 1.3, family="chroma_tone")), True)}
     image = np.random.default_rng(0).integers(0, 256, (1000, 1500, 3)).astype(np.uint8)
     key = jax.random.PRNGKey(0)
     best = {}
-    for on in (False, True, False, True):
-        run = jax.jit(lambda k, x, p, on=on: g2r_jax.unprocess(k, x, p, content=on)[0])
-        run(key, image, profile).block_until_ready()
-        times = []
-        for _ in range(repeats):
-            cpu = time.process_time()
+    for _turn in range(2):
+        for name, (profile, on) in variants.items():
+            run = jax.jit(lambda k, x, p, on=on: g2r_jax.unprocess(k, x, p, content=on)[0])
             run(key, image, profile).block_until_ready()
-            times.append(time.process_time() - cpu)
-        best[on] = min(best.get(on, np.inf), min(times))
-    return (f"unprocess of a 1000 x 1500 frame, CPU time (best of {repeats}): content off {1000 * best[False]:.1f} ms, "
-            f"on {1000 * best[True]:.1f} ms ({100 * (best[True] / best[False] - 1):+.1f} %)")
+            for _ in range(repeats):
+                cpu = time.process_time()
+                run(key, image, profile).block_until_ready()
+                best[name] = min(best.get(name, np.inf), time.process_time() - cpu)
+    off = best["off"]
+    return (f"unprocess of a 1000 x 1500 frame, CPU time (best of {2 * repeats}): content off {1000 * off:.1f} ms, "
+            + ", ".join(f"{name} {1000 * best[name]:.1f} ms ({100 * (best[name] / off - 1):+.1f} %)"
+                        for name in ("chroma", "chroma_tone")))
 
 
 def main(argv=None) -> int:

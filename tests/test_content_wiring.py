@@ -11,6 +11,7 @@ import pytest
 
 import g2r_jax
 from g2r_jax import content
+from g2r_jax.profile.editing import attach_spectral
 from g2r_jax.profile.schema import profile_from_dict, profile_to_dict, replace
 
 
@@ -42,6 +43,33 @@ def test_the_content_model_changes_the_mosaic_when_on():
     assert np.array_equal(adapted, forced) and np.array_equal(plain, turned_off)
     batch, _ = g2r_jax.unprocess_batch(key[None], _image()[None], on_by_default)
     assert np.array_equal(batch[0], adapted)
+
+
+@pytest.mark.parametrize("colour, family", [("matrix", "chroma"), ("spectral", "chroma"),
+                                            ("spectral-jakob2019", "chroma"), ("matrix", "chroma_tone")])
+def test_folded_content_model_equals_the_transform_of_the_pixels(colour, family):
+    """A linear model folded into the colour matrix (no pass over the pixels) gives the mosaic of
+    the image transformed first; 'chroma_tone' (not linear) and the Jakob-Hanika stage (not a
+    matrix) take the transform on the pixels."""
+    profile = g2r_jax.load_profile("Canon600D")
+    if colour != "matrix":
+        profile = attach_spectral(profile)
+    model = content.content_model(0.35, 1.3 if family == "chroma_tone" else 1.0, family=family)
+    assert (content.as_matrix(model) is None) == (family == "chroma_tone")
+    linear = np.random.default_rng(1).uniform(0.0, 1.0, (32, 48, 3)).astype(np.float32)
+    key = jax.random.PRNGKey(5)
+    options = dict(transfer="linear", noise=False, quantize=False, colour=colour)
+    in_the_model, _ = g2r_jax.unprocess(key, linear, replace(profile, content=model), content=True, **options)
+    transformed_first, _ = g2r_jax.unprocess(key, np.asarray(content.apply(model, linear)), profile, **options)
+    plain, _ = g2r_jax.unprocess(key, linear, profile, **options)
+    assert np.allclose(in_the_model, transformed_first, rtol=1e-5, atol=1e-3)
+    assert not np.allclose(in_the_model, plain, rtol=1e-3)
+
+
+def test_as_matrix_is_the_chroma_transform():
+    linear = np.random.default_rng(2).uniform(0.0, 2.0, (5, 7, 3)).astype(np.float32)
+    for model in (content.content_model(0.35), content.identity()):
+        assert np.allclose(linear @ np.asarray(content.as_matrix(model)).T, content.apply(model, linear), atol=1e-6)
 
 
 def test_profile_json_round_trip_keeps_the_model_and_names_a_bad_block(tmp_path):

@@ -57,6 +57,20 @@ def identity() -> ContentModel:
     return content_model(1.0, 1.0, family="identity", source="identity")
 
 
+def as_matrix(model: ContentModel) -> Float[Array, "3 3"] | None:
+    """The transform as a 3 x 3 matrix A on linear sRGB (x' = A x) when it is linear (the
+    'identity' and 'chroma' families), else None. A = s I + (1 - s) 1 w^T, w the luminance row:
+    row i gives x'_i = s x_i + (1 - s) Y. A colour stage that is itself a matrix on linear sRGB
+    takes M A in place of M, so the model costs no pass over the pixels (`pipeline.render_mosaic`)."""
+    if model.family == "chroma_tone":
+        return None
+    s = jnp.asarray(model.chroma_scale, jnp.float32)
+    if model.family == "identity":
+        s = jnp.float32(1.0)
+    weights = jnp.asarray(LUMINANCE, jnp.float32)
+    return s * jnp.eye(3, dtype=jnp.float32) + (1.0 - s) * jnp.ones((3, 1), jnp.float32) * weights[None, :]
+
+
 def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"]) -> Float[Array, "*batch H W 3"]:
     """The content transform of one image (H, W, 3) or a batch (..., H, W, 3) in linear sRGB
     (values >= 0). The identity model (and s = 1, p = 1) returns its input bit for bit; only the
