@@ -5,8 +5,10 @@ training images (without their labels), UPI on the same content, and real traini
 Protocol, per camera and seed (the 3 folds of the downstream benchmark, `g2r_jax.measure.folds_of`):
 - the lights are fitted to the training folds' measured illuminants ('fitted' of the downstream
   benchmark: what a folder of DNGs gives `g2r-fit-profile`);
-- the family of the content model is chosen on the training folds only: they are split again
-  (two thirds / one third, seeded, duplicate files kept together); each candidate family is fitted to the inner two thirds'
+- the family of the content model is chosen on the training folds only
+  (`g2r_jax.downstream.content_rows.fold_content_model`, which `g2r-downstream --content-rows`
+  uses too): they are split again (two thirds / one third, seeded, duplicate files kept
+  together); each candidate family is fitted to the inner two thirds'
   thumbnails (white-balanced by their light, as a DNG's AsShotNeutral would), g2r_jax RAW of the
   CG views is made with it under lights fitted to the same two thirds, the selection estimator is
   trained on it and tested on the inner third; the family with the lowest mean error is kept
@@ -49,54 +51,11 @@ def _say(message: str) -> None:
     print(f"  {time.strftime('%H:%M:%S')} {message}", file=sys.stderr, flush=True)
 
 
-def _adapted(model, views):
-    import jax
-
-    from g2r_jax.content import apply
-
-    run = jax.jit(apply)
-    return np.concatenate([np.asarray(run(model, views[i:i + 100])) for i in range(0, len(views), 100)])
-
-
-def _fit(family, images, lights, views, profile):
-    """The content model of `family` fitted to real thumbnails (white-balanced by `lights`) and a
-    sample of the CG views, in the camera's white-balanced RGB at the median light; 'chroma@S' is
-    a chroma scale S given, not fitted (a candidate the selection on training folds may keep)."""
-    from g2r_jax import content
-
-    if family.startswith("chroma@"):
-        return content.content_model(float(family.split("@")[1]), family="chroma", source="given")
-    real = content.statistics(content.white_balanced_camera_rgb(images, lights), source="training folds")
-    neutral = np.median(lights / lights[:, 1:2], axis=0)
-    to_camera = content.srgb_to_camera_matrices(neutral[None], profile.colour)[0]
-    return content.fit_content_model(real, family=family, cg_sample=views, to_camera=to_camera)
-
-
-def _select_family(families, real, train, views, profile, estimator, seed, fold):
-    """The family whose g2r_jax set trains `estimator` best on an inner third of `train`."""
-    from g2r_jax.downstream import experiment, training_sets
-    from g2r_jax.downstream.estimators import train_estimator
-    from g2r_jax.measure import angular_error_degrees, folds_of
-
-    groups = getattr(real, "groups", None)
-    inner = folds_of(len(train), 3, 10_000 + 100 * seed + fold, groups=None if groups is None else groups[train])
-    inner_val, inner_train = train[inner[0]], np.setdiff1d(train, train[inner[0]])
-    lights = real.illuminants[inner_train]
-    fitted = experiment.fitted_illuminants(profile, lights, "auto", seed)
-    errors = {}
-    for family in ("identity",) + tuple(families):
-        model = _fit(family, real.images[inner_train], lights, views, profile)
-        images, labels = training_sets.g2r_set(_adapted(model, views), fitted, 7_000 + 1000 * seed + fold)
-        predict = train_estimator(estimator, images, labels, seed=1000 * seed + fold)
-        errors[family] = float(np.mean(angular_error_degrees(predict(real.images[inner_val]),
-                                                             real.illuminants[inner_val])))
-    return min(errors, key=errors.get), errors
-
-
 def _row_sets(real, train, views, srgb_views, model, fitted, seed, fold):
     from g2r_jax.downstream import training_sets
+    from g2r_jax.downstream.content_rows import adapted_views
 
-    adapted = _adapted(model, views)
+    adapted = adapted_views(model, views)
     salt = 1000 * seed + 10 * fold + 4
     return {"fitted": lambda: training_sets.g2r_set(views, fitted, salt),
             "fitted+content": lambda: training_sets.g2r_set(adapted, fitted, salt),
@@ -109,7 +68,7 @@ def run_camera(job) -> dict:
     """One camera: errors per (row, estimator) per seed, and the models chosen per fold."""
     from PIL import Image
 
-    from g2r_jax.downstream import experiment, real_sets, training_sets
+    from g2r_jax.downstream import content_rows, experiment, real_sets, training_sets
     from g2r_jax.downstream.estimators import train_estimator
     from g2r_jax.measure import angular_error_degrees, folds_of
     from g2r_jax.runtime import compile_cache
@@ -128,8 +87,10 @@ def run_camera(job) -> dict:
         parts = {key: [] for key in errors}
         for fold, test in enumerate(folds_of(len(real.images), 3, 0, groups=getattr(real, "groups", None))):
             train = np.setdiff1d(np.arange(len(real.images)), test)
-            family, selection = _select_family(families, real, train, views, profile, select_estimator, seed, fold)
-            model = _fit(family, real.images[train], real.illuminants[train], views, profile)
+            choice = content_rows.fold_content_model(
+                real, train, views, profile, lambda lights: experiment.fitted_illuminants(profile, lights, "auto", seed),
+                candidates=("identity",) + families, estimator=select_estimator, seed=seed, fold=fold)
+            family, selection, model = choice.name, choice.errors, choice.model
             chosen.append({"seed": seed, "fold": fold, "family": family, "selection_errors": selection,
                            "chroma_scale": float(model.chroma_scale), "tone_power": float(model.tone_power)})
             fitted = experiment.fitted_illuminants(profile, real.illuminants[train], "auto", seed)

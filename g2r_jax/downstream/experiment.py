@@ -22,7 +22,10 @@ Rows (`ROWS`):
 - real_profile_light: the same, relit to lights drawn from the fitted model (what the
   illuminant model costs);
 - other_content: real images of other scenes (another camera's, rendered to sRGB at their
-  white) made RAW for this camera with the fitted model (content that is real but not this set's).
+  white) made RAW for this camera with the fitted model (content that is real but not this set's);
+- content: 'fitted' on the CG views through a content model (the profile's own, else one chosen
+  per fold on the training folds only: `downstream.content_rows`);
+- upi_content: UPI on the same adapted views (the lead over UPI on equal content).
 The content's share of the gap is fitted - real_profile_light; the profile's is
 real_profile_light - real.
 """
@@ -50,11 +53,14 @@ ROWS = {
     "real_other_light": "control: real, another's light",
     "real_profile_light": "control: real, lights from the model",
     "other_content": "control: other real scenes",
+    "content": "g2r_jax, lights fitted, content model",
+    "upi_content": "UPI on the same adapted content",
 }
 EXTRA_ROWS: dict = {}   # rows added by `register_row`: name -> builder
 SYNTHETIC_CG_ROWS = ("upi", "published", "shipped", "fitted", "single")
 CONTROL_ROWS = ("real_own_light", "real_other_light", "real_profile_light", "other_content")
-DEFAULT_ROWS = tuple(r for r in ROWS if r != "other_content")
+CONTENT_ROWS = ("content", "upi_content")   # not default: they train extra estimators (`content_rows`)
+DEFAULT_ROWS = tuple(r for r in ROWS if r != "other_content" and r not in CONTENT_ROWS)
 
 
 @dataclasses.dataclass
@@ -121,6 +127,7 @@ class _Sets:
         self.cg_linear, self.illuminant_model, self.other = cg_linear, illuminant_model, other
         self.single_light = single_light
         self.cache = {}
+        self.notes = []   # lines for the result's notes (e.g. the content model each fold kept)
 
     def views(self, seed):
         key = ("views", seed)
@@ -145,7 +152,13 @@ class _Sets:
             self.cache[key] = fitted_illuminants(self.profile, lights, self.illuminant_model, seed)
         return self.cache[key]
 
+    def fitted_to(self, lights: np.ndarray, seed: int):
+        """The profile with its illuminant model fitted to `lights` (N, 3), this experiment's kind."""
+        return fitted_illuminants(self.profile, lights, self.illuminant_model, seed)
+
     def build(self, row: str, train: np.ndarray, fold: int, seed: int):
+        from g2r_jax.downstream import content_rows
+
         real = self.real
         salt = 1000 * seed + 10 * fold
         if row == "real":
@@ -160,6 +173,8 @@ class _Sets:
             if key not in self.cache:
                 self.cache[key] = _sets.g2r_set(self.views(seed), self.profile, seed + 2)
             return self.cache[key]
+        if row in content_rows.BUILDERS:
+            return content_rows.BUILDERS[row](self, train, fold, seed)
         if row in EXTRA_ROWS:
             return EXTRA_ROWS[row](self, train, fold, seed)
         lights = real.illuminants[train]
@@ -239,4 +254,4 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
         for key, parts in per_fold.items():
             errors[key].append(np.concatenate(parts))
     return ExperimentResult(camera=real.name, rows=tuple(rows), estimators=tuple(estimators), seeds=tuple(seeds),
-                            errors=errors, seconds=time.perf_counter() - start)
+                            errors=errors, seconds=time.perf_counter() - start, notes=list(sets.notes))

@@ -1,0 +1,186 @@
+"""The content model's rows of the downstream experiment (issue 32): 'content', g2r_jax with the
+lights fitted to the training files and a content model on the CG views, and 'upi_content', UPI
+on the same adapted views (so that the lead over UPI is measured on equal content).
+
+The content model is the profile's own when it carries one (used as given, no selection). Else it
+is chosen per fold on the training folds only, never the test fold: the training folds are split
+again (two thirds / one third, seeded, files with the same pixels kept together:
+`g2r_jax.measure.folds_of`); each candidate makes g2r_jax RAW of the CG views under lights fitted
+to the inner two thirds, the selection estimator is trained on it and tested on the inner third,
+and the candidate with the lowest mean angular error is kept, then refitted to all the training
+folds. Protocol and measurement: docs/pages/validation/content_model.md ("Finding 2").
+
+Candidates are named 'identity', a family fitted to the real thumbnails' statistics without labels
+('chroma', 'chroma_tone': `g2r_jax.content.fit_content_model`), or 'chroma@S', a chroma scale S
+given (its choice uses the training folds' labels, through the inner third's errors).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+# The candidates the measurement kept: on the nine NUS cameras (200 views, seed 0) the selection
+# over identity, the fitted 'chroma' and these two scales kept 0.35 on 22 of 27 folds and 0.5 on
+# the others; the fitted 'chroma' is the identity on every camera and 'chroma_tone' made the
+# selection estimator worse (docs/pages/validation/content_model.md, findings 1 and 2).
+CANDIDATES = ("identity", "chroma@0.5", "chroma@0.35")
+SELECTION_ESTIMATOR = "moments"   # the estimator the page's selection used (cheap to train)
+INNER_FOLDS = 3                   # the training folds split into thirds: one third validates
+_APPLY_CHUNK = 100                # views per compiled call of `content.apply`
+
+
+@dataclasses.dataclass(frozen=True)
+class FoldChoice:
+    """The content model one fold uses: `model`, the candidate `name` it came from, and the
+    selection's mean inner-third error per candidate (degrees; empty when given, not chosen)."""
+
+    model: object
+    name: str
+    errors: dict
+
+
+def adapted_views(model, views: np.ndarray) -> np.ndarray:
+    """Linear sRGB views (n, H, W, 3) through the content model (`g2r_jax.content.apply`, jit),
+    in chunks of `_APPLY_CHUNK`."""
+    import jax
+
+    from g2r_jax.content import apply
+
+    run = jax.jit(apply)
+    views = np.asarray(views, np.float32)
+    return np.concatenate([np.asarray(run(model, views[i:i + _APPLY_CHUNK]))
+                           for i in range(0, len(views), _APPLY_CHUNK)])
+
+
+def candidate_model(name: str, images: np.ndarray, lights: np.ndarray, views: np.ndarray, profile):
+    """The content model of candidate `name`: 'chroma@S' a chroma scale S given; otherwise a family
+    of `g2r_jax.content.FAMILIES` fitted to real thumbnails `images` (white-balanced by `lights`,
+    as a DNG's AsShotNeutral would) and a sample of the CG `views`, in the camera's white-balanced
+    RGB at the median light (`fit_content_model`; 'identity' fits to the identity)."""
+    from g2r_jax import content
+
+    if name.startswith("chroma@"):
+        try:
+            scale = float(name.split("@", 1)[1])
+        except ValueError:
+            raise ValueError(f"content candidate {name!r}: expected chroma@S with S a number in [0, 1]") from None
+        return content.content_model(scale, family="chroma", source="given")
+    if name not in content.FAMILIES:
+        raise ValueError(f"unknown content candidate {name!r}; expected one of "
+                         f"{', '.join(content.FAMILIES)} or chroma@S")
+    real = content.statistics(content.white_balanced_camera_rgb(images, lights), source="training folds")
+    neutral = np.median(lights / lights[:, 1:2], axis=0)
+    to_camera = content.srgb_to_camera_matrices(neutral[None], profile.colour)[0]
+    return content.fit_content_model(real, family=name, cg_sample=views, to_camera=to_camera)
+
+
+def inner_split(train: np.ndarray, groups, seed: int, fold: int) -> tuple:
+    """(inner training indices, inner validation indices), both subsets of `train`: one seeded
+    third of `train` validates, files with the same pixels (`groups`, indexed like the whole set)
+    on one side."""
+    from g2r_jax.measure import folds_of
+
+    inner = folds_of(len(train), INNER_FOLDS, 10_000 + 100 * seed + fold,
+                     groups=None if groups is None else np.asarray(groups)[train])
+    validate = train[inner[0]]
+    return np.setdiff1d(train, validate), validate
+
+
+def select_candidate(candidates, real, train: np.ndarray, views: np.ndarray, profile, fit_lights, *,
+                     estimator: str = SELECTION_ESTIMATOR, seed: int, fold: int) -> tuple:
+    """The candidate whose g2r_jax set trains `estimator` best on an inner third of `train`.
+
+    **Arguments:** `candidates` (names, see the module docstring); `real`: the `RealSet`; `train`:
+    the indices of the training folds (the only images read); `views`: the CG views (linear sRGB);
+    `profile`: the camera's profile (its colour model for the fitted families);
+    `fit_lights(lights) -> profile` with its illuminant model fitted to `lights` (N, 3).
+    **Returns:** (the kept name, {name: mean inner-third error, degrees})."""
+    from g2r_jax.downstream import training_sets
+    from g2r_jax.downstream.estimators import train_estimator
+    from g2r_jax.measure import angular_error_degrees
+
+    inner_train, validate = inner_split(train, getattr(real, "groups", None), seed, fold)
+    lights = real.illuminants[inner_train]
+    fitted = fit_lights(lights)
+    errors = {}
+    for name in candidates:
+        model = candidate_model(name, real.images[inner_train], lights, views, profile)
+        images, labels = training_sets.g2r_set(adapted_views(model, views), fitted, 7_000 + 1000 * seed + fold)
+        predict = train_estimator(estimator, images, labels, seed=1000 * seed + fold)
+        errors[name] = float(np.mean(angular_error_degrees(predict(real.images[validate]),
+                                                           real.illuminants[validate])))
+    return min(errors, key=errors.get), errors
+
+
+def fold_content_model(real, train: np.ndarray, views: np.ndarray, profile, fit_lights, *,
+                       candidates=CANDIDATES, estimator: str = SELECTION_ESTIMATOR, seed: int,
+                       fold: int) -> FoldChoice:
+    """The candidate `select_candidate` keeps, refitted to all the training folds' thumbnails."""
+    name, errors = select_candidate(candidates, real, train, views, profile, fit_lights, estimator=estimator,
+                                    seed=seed, fold=fold)
+    model = candidate_model(name, real.images[train], real.illuminants[train], views, profile)
+    return FoldChoice(model=model, name=name, errors=errors)
+
+
+def _note(sets, line: str) -> None:
+    if line not in sets.notes:
+        sets.notes.append(line)
+
+
+def fold_choice(sets, train: np.ndarray, fold: int, seed: int) -> FoldChoice:
+    """The content model of (fold, seed), cached in `sets.cache` (both rows share it): the
+    profile's own as given, else `fold_content_model` on the training folds; each is said in
+    `sets.notes`."""
+    key = ("content_model", fold, seed)
+    if key in sets.cache:
+        return sets.cache[key]
+    own = getattr(sets.profile, "content", None)
+    if own is not None:
+        choice = FoldChoice(model=own, name="the profile's", errors={})
+        _note(sets, f"content rows: the profile's own content model ({own.family}, chroma scale "
+                    f"{float(own.chroma_scale):.2f}, tone power {float(own.tone_power):.2f}), used as given (no selection)"
+                    + ("; it applies by default, so the other g2r_jax rows carry it too" if own.apply_by_default else ""))
+    else:
+        choice = fold_content_model(sets.real, train, sets.views(seed), sets.profile,
+                                    lambda lights: sets.fitted_to(lights, seed), seed=seed, fold=fold)
+        tried = ", ".join(f"{name} {error:.2f}" for name, error in choice.errors.items())
+        _note(sets, f"content rows, seed {seed}, fold {fold + 1}: kept {choice.name} (chroma scale "
+                    f"{float(choice.model.chroma_scale):.2f}), chosen by {SELECTION_ESTIMATOR} on a third of the "
+                    f"training folds (mean error, deg: {tried})")
+    sets.cache[key] = choice
+    return choice
+
+
+def _adapted(sets, train, fold, seed):
+    """The fold's adapted views; only the last (fold, seed) is kept (a set of views is large)."""
+    key = ("content_views", fold, seed)
+    cached = sets.cache.get(("content_views",))
+    if cached is None or cached[0] != key:
+        model = fold_choice(sets, train, fold, seed).model
+        sets.cache[("content_views",)] = (key, adapted_views(model, sets.views(seed)))
+    return sets.cache[("content_views",)][1]
+
+
+def content_row(sets, train: np.ndarray, fold: int, seed: int):
+    """Row 'content': the 'fitted' row's set (same lights, noise and seed) on the adapted views.
+    The model is applied here once: the profile goes to the simulation without it."""
+    from g2r_jax.downstream import training_sets
+    from g2r_jax.profile.schema import replace
+
+    fitted = sets.fitted(train, fold, seed)
+    if getattr(fitted, "content", None) is not None:
+        fitted = replace(fitted, content=None)
+    return training_sets.g2r_set(_adapted(sets, train, fold, seed), fitted, 1000 * seed + 10 * fold + 4)
+
+
+def upi_content_row(sets, train: np.ndarray, fold: int, seed: int):
+    """Row 'upi_content': the 'upi' row's recipe and seed on the same adapted views (sRGB-coded)."""
+    from g2r_jax.downstream import training_sets
+
+    views = training_sets.linear_to_srgb_views(_adapted(sets, train, fold, seed))
+    return training_sets.upi_set(views, seed + 1)
+
+
+BUILDERS = {"content": content_row, "upi_content": upi_content_row}
