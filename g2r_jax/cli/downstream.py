@@ -57,6 +57,12 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--seeds", type=int, default=2, help="repetitions with new synthetic sets")
     parser.add_argument("--n", type=int, default=600, help="synthetic training images per set")
     parser.add_argument("--folds", type=int, default=3, help="cross-validation folds of the real files")
+    parser.add_argument("--content-rows", action="store_true",
+                        help="add two rows: g2r_jax with the lights fitted and a content model on the CG images, "
+                             "and UPI on the same adapted images (2 more training sets per fold and seed, each "
+                             "trained with every estimator). The model is the profile's own if it has one, else "
+                             "chosen per fold on the training folds only, by 3 more moments estimators per fold "
+                             "and seed (identity, chroma scale 0.5, 0.35)")
     parser.add_argument("--max-megapixels", type=float, default=100.0, metavar="MPX",
                         help="refuse CG images larger than this (0: no limit)")
     parser.add_argument("--dry-run", action="store_true",
@@ -161,7 +167,7 @@ def check_arguments(args) -> str | None:
 
 
 def _run(args) -> int:
-    from g2r_jax.downstream import run_check, write_report
+    from g2r_jax.downstream import default_rows, run_check, write_report
 
     say = None if args.quiet else (lambda message: print(f"g2r-downstream: {message}", file=sys.stderr))
 
@@ -170,6 +176,7 @@ def _run(args) -> int:
 
     result = run_check(args.measured or (), args.cg or (), burst=args.burst, profile=args.profile,
                        estimators=tuple(args.estimators.split(",")), seeds=args.seeds, n=args.n, folds=args.folds,
+                       rows=default_rows(args.profile is not None, content_rows=True) if args.content_rows else None,
                        denoiser_steps=args.denoiser_steps, dry_run=args.dry_run, progress=say, on_problem=bad,
                        max_pixels=int(args.max_megapixels * 1e6) if args.max_megapixels > 0 else None)
     if args.quiet:   # notes (files with the same pixels) matter for the result: said even when quiet

@@ -17,11 +17,13 @@ from g2r_jax.io.image_headers import DEFAULT_MAX_PIXELS
 DEFAULT_ESTIMATORS = ("cnn", "histogram")
 
 
-def default_rows(profile_given: bool) -> tuple:
+def default_rows(profile_given: bool, content_rows: bool = False) -> tuple:
     """The experiment's rows: every default row, 'shipped' only when a profile was given (a
-    fitted profile has no light of its own to test). Extra rows (`experiment.ROWS`) are passed
-    to `run_check(rows=...)`."""
-    return tuple(r for r in experiment.DEFAULT_ROWS if profile_given or r != "shipped")
+    fitted profile has no light of its own to test), and with `content_rows` the content model's
+    two rows (`experiment.CONTENT_ROWS`, `downstream.content_rows`). Other rows
+    (`experiment.ROWS`) are passed to `run_check(rows=...)`."""
+    rows = tuple(r for r in experiment.DEFAULT_ROWS if profile_given or r != "shipped")
+    return rows + (experiment.CONTENT_ROWS if content_rows else ())
 
 
 def camera_profile(profile, inputs: Inputs):
@@ -56,7 +58,9 @@ def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds,
     document = {**result.to_dict(), "decomposition": {e: report.decomposition(result, e) for e in estimators},
                 "content": differences}
     sentences = [report.sentence(result, e, differences) for e in estimators]
-    markdown = [report.table(result), "", "## What differs in the CG content", "", report.content_table(differences), ""]
+    notes = [*(f"- {note}" for note in result.notes), ""] if result.notes else []
+    markdown = [report.table(result), "", *notes, "## What differs in the CG content", "",
+                report.content_table(differences), ""]
     return result, document, sentences, markdown
 
 
@@ -108,6 +112,9 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
         raise ValueError("nothing to check: give real DNGs (measured) with CG images, or a burst, or both")
     if measured and not cg:
         raise ValueError("the colour check needs CG images (cg) beside the real DNGs")
+    unknown = [r for r in rows or () if r not in experiment.ROWS]
+    if unknown:
+        raise ValueError(f"unknown rows {', '.join(map(repr, unknown))}; expected some of {', '.join(experiment.ROWS)}")
     say = progress or (lambda line: None)
     inputs = read_inputs(measured, cg, burst, folds=folds, max_pixels=max_pixels, on_problem=on_problem,
                          progress=progress)

@@ -1,0 +1,218 @@
+"""The content model's rows of the downstream experiment (issue 32): the model is chosen on the
+training folds only, a profile's own model is used as given, `g2r-downstream --content-rows` reports
+both rows, and an unknown row is refused by name."""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import numpy as np
+import pytest
+
+import g2r_jax
+from g2r_jax.downstream import content_rows, estimators, experiment, real_sets, training_sets
+from g2r_jax.measure import folds_of
+
+
+def _real_set(count=12, seed=0):
+    """Distinct random thumbnails under lights drawn from NikonD40's own illuminant model."""
+    from g2r_jax.illuminants.distributions import sample_neutrals
+
+    profile = g2r_jax.load_profile("NikonD40")
+    lights = np.asarray(sample_neutrals(jax.random.PRNGKey(seed), profile.illuminants, count), np.float64)
+    images = np.random.default_rng(seed).random((count, 64, 64, 3)).astype(np.float32)
+    return real_sets.RealSet("test", images, lights / lights.sum(1, keepdims=True)), profile
+
+
+def _cg():
+    return [np.random.default_rng(5).random((160, 200, 3)).astype(np.float32)]   # linear float32: used as is
+
+
+def _fake_sets(monkeypatch, calls):
+    """g2r_set / upi_set that only record their inputs (the rows' logic, not the simulation)."""
+
+    def g2r_set(views, profile, seed, **_):
+        calls.append(("g2r", np.asarray(views), profile, seed))
+        rng = np.random.default_rng(seed)
+        return rng.random((len(views), 64, 64, 3)).astype(np.float32), rng.uniform(0.2, 0.5, (len(views), 3))
+
+    def upi_set(views, seed):
+        calls.append(("upi", np.asarray(views), None, seed))
+        rng = np.random.default_rng(seed)
+        return rng.random((len(views), 64, 64, 3)).astype(np.float32), rng.uniform(0.2, 0.5, (len(views), 3))
+
+    monkeypatch.setattr(training_sets, "g2r_set", g2r_set)
+    monkeypatch.setattr(training_sets, "upi_set", upi_set)
+
+
+def test_the_selection_never_sees_the_test_fold(monkeypatch):
+    """Every real image the selection reads (the thumbnails its candidates are fitted to, the
+    lights fitted, the images its estimators are tested on) is in the training folds."""
+    real, profile = _real_set()
+    index = {image.tobytes(): i for i, image in enumerate(real.images)}
+    light_index = {light.tobytes(): i for i, light in enumerate(real.illuminants)}
+    selections = []                       # per call: train, validated, fitted-to images, lights
+    current = []
+
+    def indices(images):
+        return {index[image.tobytes()] for image in np.asarray(images)}
+
+    def train_estimator(name, images, lights, seed=0):
+        def predict(test):
+            if current:
+                current[-1]["validated"] |= indices(test)
+            return np.tile([1.0, 1.0, 1.0], (len(test), 1)) / np.sqrt(3)
+        return predict
+
+    original_select, original_candidate = content_rows.select_candidate, content_rows.candidate_model
+
+    def select(candidates, real_set, train, views, prof, fit_lights, **options):
+        def fit(lights):
+            current[-1]["lights"] |= {light_index[np.asarray(light, np.float64).tobytes()] for light in lights}
+            return fit_lights(lights)
+
+        current.append({"train": set(train.tolist()), "validated": set(), "fitted": set(), "lights": set()})
+        try:
+            return original_select(candidates, real_set, train, views, prof, fit, **options)
+        finally:
+            selections.append(current.pop())
+
+    def candidate(name, images, lights, views, prof):
+        if current:
+            current[-1]["fitted"] |= indices(images)
+        return original_candidate(name, images, lights, views, prof)
+
+    monkeypatch.setattr(estimators, "train_estimator", train_estimator)
+    monkeypatch.setattr(content_rows, "select_candidate", select)
+    monkeypatch.setattr(content_rows, "candidate_model", candidate)
+    _fake_sets(monkeypatch, [])
+    result = experiment.illuminant_experiment(real, profile, _cg(), rows=("content", "upi_content"),
+                                              estimators=("moments",), seeds=(0, 1), n=50, folds=2,
+                                              illuminant_model="prior")
+    tests = folds_of(len(real.images), 2, 0, groups=real.groups)
+    assert len(selections) == 4                                  # one per (fold, seed), shared by both rows
+    for k, seen in enumerate(selections):
+        test = set(tests[k % 2].tolist())
+        assert seen["train"] == set(range(len(real.images))) - test
+        assert seen["validated"] and seen["fitted"] and seen["lights"]
+        assert not (seen["validated"] | seen["fitted"] | seen["lights"]) & test
+        assert not seen["validated"] & (seen["fitted"] | seen["lights"])   # the inner third is held out
+    assert sum("kept chroma@" in note or "kept identity" in note for note in result.notes) == 4
+    assert {row for row, _ in result.errors} == {"content", "upi_content"}
+
+
+def test_inner_split_keeps_files_with_the_same_pixels_together():
+    train = np.arange(3, 15)
+    groups = np.arange(15) // 2                                  # files 2k and 2k + 1 are copies
+    inner, validate = content_rows.inner_split(train, groups, seed=0, fold=1)
+    assert set(inner) | set(validate) == set(train) and not set(inner) & set(validate)
+    assert not {groups[i] for i in inner} & {groups[i] for i in validate}
+
+
+@pytest.mark.parametrize("by_default", [False, True])
+def test_a_profiles_own_content_model_is_used_as_given(monkeypatch, by_default):
+    from g2r_jax.content import apply, content_model
+    from g2r_jax.profile.schema import replace
+
+    real, profile = _real_set()
+    model = content_model(0.35, source="test", apply_by_default=by_default)
+    profile = replace(profile, content=model)
+    calls = []
+    _fake_sets(monkeypatch, calls)
+
+    def no_selection(*args, **kwargs):
+        raise AssertionError("the profile's own model must be used without a selection")
+
+    monkeypatch.setattr(content_rows, "select_candidate", no_selection)
+    monkeypatch.setattr(estimators, "train_estimator",
+                        lambda name, x, y, seed=0: (lambda test: np.tile(y.mean(0), (len(test), 1))))
+    result = experiment.illuminant_experiment(real, profile, _cg(), rows=("content", "upi_content"),
+                                              estimators=("moments",), seeds=(0,), n=50, folds=2)
+    views = training_sets.cg_views(_cg(), 50, 0)
+    expected = np.asarray(apply(model, views))
+    g2r_calls = [c for c in calls if c[0] == "g2r"]
+    upi_calls = [c for c in calls if c[0] == "upi"]
+    assert len(g2r_calls) == 2 and len(upi_calls) == 2             # one per fold
+    for _, given, simulated_with, _ in g2r_calls:
+        np.testing.assert_allclose(given, expected, atol=1e-6)     # adapted once, by the profile's model
+        assert simulated_with.content is None                      # ... and not again in the simulation
+    np.testing.assert_allclose(upi_calls[0][1], training_sets.linear_to_srgb_views(expected), atol=1e-6)
+    assert not np.allclose(expected, views, atol=1e-3)
+    assert any("used as given" in note and "0.35" in note for note in result.notes)
+    assert any("carry it too" in note for note in result.notes) == by_default
+
+
+def test_content_rows_are_not_default_and_an_unknown_row_is_refused_by_name(tmp_path):
+    from g2r_jax.downstream import default_rows, run_check
+
+    assert not set(experiment.CONTENT_ROWS) & set(default_rows(True))
+    assert default_rows(True, content_rows=True)[-2:] == ("content", "upi_content")
+    assert set(content_rows.BUILDERS) == set(experiment.CONTENT_ROWS) <= set(experiment.ROWS)
+    with pytest.raises(ValueError, match="'contnet'"):
+        run_check([tmp_path], [tmp_path], rows=("fitted", "contnet"))   # before any file is read
+    real, profile = _real_set()
+    with pytest.raises(ValueError, match="contnet"):
+        experiment.illuminant_experiment(real, profile, _cg(), rows=("contnet",), estimators=("moments",), n=50,
+                                         folds=2)
+
+
+@pytest.fixture(scope="module")
+def camera_folders(tmp_path_factory):
+    """12 DNGs of a NikonD40 (dead-leaves scenes under drawn lights) and 3 CG PNGs."""
+    from PIL import Image
+
+    from g2r_jax.audit import scenes, simulate
+    from g2r_jax.io.dng_write import write_dng
+
+    root = tmp_path_factory.mktemp("content_rows")
+    dngs, cg = root / "dngs", root / "cg"
+    dngs.mkdir()
+    cg.mkdir()
+    profile = g2r_jax.load_profile("NikonD40")
+    for i, (mosaic, info) in enumerate(simulate.simulate(profile, scenes.scene_set(12, 3, 144, 192), 1)):
+        write_dng(dngs / f"real_{i:02d}.dng", mosaic, info)
+    for i, scene in enumerate(scenes.scene_set(3, 9, 160, 224)):
+        Image.fromarray((np.clip(scene, 0, 1) * 255).round().astype(np.uint8)).save(cg / f"render_{i}.png")
+    return dngs, cg
+
+
+def test_the_flag_asks_run_check_for_the_content_rows(tmp_path, monkeypatch, capsys):
+    from g2r_jax.cli import downstream
+    from g2r_jax.downstream import check, default_rows
+
+    asked = []
+
+    def run_check(*args, rows=None, **kwargs):
+        asked.append(rows)
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(check, "run_check", run_check)
+    (tmp_path / "in").mkdir()
+    for flag in ((), ("--content-rows",)):
+        status = downstream.main([str(a) for a in ("--measured", tmp_path / "in", "--cg", tmp_path / "in", "--report",
+                                                   tmp_path / "r", "--profile", "NikonD40", "--quiet", *flag)])
+        assert status == 2 and "stop here" in capsys.readouterr().err
+    assert asked == [None, default_rows(True, content_rows=True)]
+
+
+@pytest.mark.slow
+def test_g2r_downstream_reports_the_content_rows(camera_folders, tmp_path, capsys):
+    """End to end (about a minute on two cores: the DNGs are simulated, every row trained)."""
+    from g2r_jax.cli import downstream
+
+    dngs, cg = camera_folders
+    report = tmp_path / "report"
+    status = downstream.main([str(a) for a in ("--measured", dngs, "--cg", cg, "--report", report, "--content-rows",
+                                               "--estimators", "moments", "--seeds", 1, "--n", 50, "--folds", 2,
+                                               "--quiet")])
+    out, err = capsys.readouterr()
+    assert status == 0, err
+    document = json.loads((report / "report.json").read_text())
+    assert document["rows"][-2:] == ["content", "upi_content"]
+    for row in ("fitted", "content", "upi", "upi_content"):
+        assert np.isfinite(document["summary"][f"{row}/moments"]["mean"])
+    assert sum("content rows, seed 0, fold" in note for note in document["notes"]) == 2
+    page = (report / "report.md").read_text()
+    assert experiment.ROWS["content"] in page and experiment.ROWS["upi_content"] in page
+    assert "content rows, seed 0, fold 1: kept" in page
