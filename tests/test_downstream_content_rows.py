@@ -216,3 +216,35 @@ def test_g2r_downstream_reports_the_content_rows(camera_folders, tmp_path, capsy
     page = (report / "report.md").read_text()
     assert experiment.ROWS["content"] in page and experiment.ROWS["upi_content"] in page
     assert "content rows, seed 0, fold 1: kept" in page
+
+
+@pytest.mark.slow
+@pytest.mark.data
+def test_the_library_rows_give_the_benchmarks_figures(shared_data, monkeypatch):
+    """One implementation: `g2r-downstream`'s rows and benchmarks/content_model.py give the same
+    per-image errors for the same seeds (Canon600D, 40 views, moments; about a minute)."""
+    import importlib.util
+    from pathlib import Path
+
+    from PIL import Image
+
+    from g2r_jax.runtime import compile_cache
+
+    monkeypatch.setattr(compile_cache, "enable", lambda **_: None)   # leave the test process as it is
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "content_model.py"
+    spec = importlib.util.spec_from_file_location("benchmark_content_model", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    candidates = tuple(c for c in content_rows.CANDIDATES if c != "identity")
+    ran = bench.run_camera(("Canon600D", ("moments",), (0,), 40, candidates, content_rows.SELECTION_ESTIMATOR))
+    frames = [np.asarray(Image.open(p).convert("RGB")) for p in sorted((shared_data / "cg" / "carla").glob("*.png"))]
+    real = real_sets.load_nus(shared_data / "estimation" / "nus" / "Canon600D.npz")
+    result = experiment.illuminant_experiment(real, bench.camera_profile("Canon600D"), frames,
+                                              rows=("fitted", "content", "upi", "upi_content", "real"),
+                                              estimators=("moments",), seeds=(0,), n=40, folds=3)
+    for row, benchmark_row in (("fitted", "fitted"), ("content", "fitted+content"), ("upi", "upi"),
+                               ("upi_content", "upi+content"), ("real", "real")):
+        np.testing.assert_allclose(result.errors[(row, "moments")][0], ran["errors"][f"{benchmark_row}/moments"][0],
+                                   rtol=1e-6, err_msg=row)
+    kept = [note.split("kept ")[1].split(" ")[0] for note in result.notes]
+    assert kept == [c["family"] for c in ran["chosen"]]
