@@ -64,7 +64,8 @@ def main(argv=None) -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cameras", default=",".join(CAMERAS))
-    parser.add_argument("--rows", default=",".join(experiment.ROWS))
+    parser.add_argument("--rows", default=",".join(r for r in experiment.ROWS if r not in experiment.CONTENT_ROWS),
+                        help="default: every row but the content model's (benchmarks/content_model.py measures those)")
     parser.add_argument("--estimators", default="cnn,moments,histogram")
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--n", type=int, default=500)
