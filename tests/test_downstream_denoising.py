@@ -206,6 +206,19 @@ def test_verdict_sentence_says_within_training_noise_where_the_rows_overlap():
     assert "99.9th percentile" in sentence and sentence in result.summary()
 
 
+def test_verdict_refuses_to_rank_rows_when_the_denoisers_learn_nothing_or_did_not_converge():
+    learned_nothing = _result({("truth", "scene"): [30.2, 30.3], ("real", "scene"): [30.1, 30.4],
+                               ("upi", "scene"): [29.9, 30.0]}, seeds=(0, 1))
+    assert "NO VERDICT" in learned_nothing.sentence() and "0.25 dB over the noisy input" in learned_nothing.sentence()
+    stopped_early = dataclasses.replace(_result({("truth", "scene"): [33.0, 33.2], ("real", "scene"): [33.1, 33.3],
+                                                 ("upi", "scene"): [34.0, 34.1]}, seeds=(0, 1)),
+                                        step_curve=(-30.0, -31.0, -31.5))
+    assert "NO VERDICT" in stopped_early.sentence() and "before the real pairs converged" in stopped_early.sentence()
+    assert "0.50 dB in the last round" in stopped_early.sentence() and "NOT converged" in stopped_early.summary()
+    converged = dataclasses.replace(stopped_early, step_curve=(-30.0, -31.0, -31.01))
+    assert "NO VERDICT" not in converged.sentence()
+
+
 def test_cg_content_is_brought_to_the_scene_levels():
     rng = np.random.default_rng(0)
     cg = rng.uniform(0, 1, (3, 4, 32, 32)).astype(np.float32) ** 2
