@@ -21,6 +21,14 @@ MIN_LIGHTS_FOR_KERNEL = 10     # 'auto': the kernel model from this many distinc
 LOCUS_CCT_RANGE = (2000.0, 20000.0)   # the camera's Planckian locus giving the kernels' directions
 MEASUREMENT = "docs validation/illuminant_models"
 PRESET_EVIDENCE = 3.0   # nats: a Bayes factor of e^3 ~ 20, "strong" (Kass & Raftery, JASA 90, 1995, sec. 3.2)
+# Another preset than day also needs this many distinct lights and its median light favouring it by
+# PRESET_MEDIAN_EVIDENCE nats: with the total alone, random sets of the NUS cameras' day and indoor lights
+# took a night preset 2.5-6 % of the time (n 1-9), up to 14 % on one camera; with the median rule 0.6 %
+# at 3 lights (1.3 % on one camera), 0.08 % at 5 (0.3 %), 0 at 9, while the S20 FE's night lights keep it
+# 96 % of the time at 5 and 99 % at 9 (benchmarks/prior_presets.py; docs validation/illuminant_models,
+# "Which prior preset").
+MIN_LIGHTS_FOR_PRESET = 5
+PRESET_MEDIAN_EVIDENCE = 1.0
 
 
 class IlluminantChoice(NamedTuple):
@@ -59,10 +67,11 @@ def camera_locus_tangents(points, colour_model) -> np.ndarray:
 
 
 def _best_prior_preset(points, colour_model, dtype):
-    """(preset, `prior.CameraPrior`) of the prior preset under which the lights are most likely,
-    the day preset unless another one's log likelihood of all the lights is `PRESET_EVIDENCE` nats
-    higher (without that margin one or two lights picked the night preset for a daylight camera);
-    the day preset for no lights. A preset this camera's matrices cannot carry (`prior.camera_prior`
+    """(preset, `prior.CameraPrior`) of the prior preset under which the lights are most likely:
+    the day preset unless, from `MIN_LIGHTS_FOR_PRESET` lights, another one's log likelihood of all
+    the lights is `PRESET_EVIDENCE` nats higher and that of the median light `PRESET_MEDIAN_EVIDENCE`
+    higher (without these rules day and indoor lights took the night preset a few % of the time);
+    the day preset for fewer lights. A preset this camera's matrices cannot carry (`prior.camera_prior`
     refuses it) is not a candidate; ValueError only when none is."""
     from g2r_jax.illuminants.prior import DEFAULT_PRESET, camera_prior
 
@@ -73,9 +82,13 @@ def _best_prior_preset(points, colour_model, dtype):
         except ValueError as error:
             refusals.append(str(error))
             continue
-        score = float(np.sum(_distributions.mixture_log_likelihood(mapped.model, points))) if len(points) else 0.0
-        if best is None or score > best[0] + PRESET_EVIDENCE:
-            best = (score, preset, mapped)
+        per_light = np.asarray(_distributions.mixture_log_likelihood(mapped.model, points)) if len(points) \
+            else np.zeros(0)
+        if best is None:
+            best = (per_light, preset, mapped)
+        elif (len(points) >= MIN_LIGHTS_FOR_PRESET and np.sum(per_light - best[0]) > PRESET_EVIDENCE
+              and np.median(per_light - best[0]) > PRESET_MEDIAN_EVIDENCE):
+            best = (per_light, preset, mapped)
     if best is None:
         raise ValueError("; ".join(refusals))
     return best[1], best[2]
