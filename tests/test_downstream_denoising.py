@@ -217,6 +217,9 @@ def test_verdict_refuses_to_rank_rows_when_the_denoisers_learn_nothing_or_did_no
     assert "0.50 dB in the last round" in stopped_early.sentence() and "NOT converged" in stopped_early.summary()
     converged = dataclasses.replace(stopped_early, step_curve=(-30.0, -31.0, -31.01))
     assert "NO VERDICT" not in converged.sentence()
+    # stopped by patience: the last round gains on the one before it, not on the best round
+    patience = dataclasses.replace(stopped_early, step_curve=(-51.86, -51.878, -51.845, -51.848, -51.883))
+    assert "NO VERDICT" not in patience.sentence() and "converged)" in patience.summary()
 
 
 def test_cg_content_is_brought_to_the_scene_levels():
@@ -237,17 +240,20 @@ DIM = BurstTruth(black_tag=60.0, white=1023.0, shot=5.2e-4, read=2.4e-6, iso=100
 
 def _ranked_check(tmp_path, base_profile, truth, low, high, blur):
     """The check on a burst of known truth: rows truth, UPI, a profile with 4x too little noise,
-    real pairs; content-equal; two seeds; steps chosen by validation (cap 600)."""
+    real pairs; content-equal; two seeds; steps chosen by validation (the product's cap). 256 x 384
+    frames: a burst of 96 x 128 (two training means of 48 x 64 planes a fold) let the denoisers
+    learn their few fixed noise realisations, which UPI's larger noise masks best."""
     folder = tmp_path / "burst"
     profile = truth_profile(base_profile, truth)
-    bursts.write_synthetic_burst(folder, profile, n_frames=8, height=96, width=128, iso=truth.iso, seed=5,
+    bursts.write_synthetic_burst(folder, profile, n_frames=8, height=256, width=384, iso=truth.iso, seed=5,
                                  low=low, high=high, fine=False, blur=blur)
     low_noise = truth_profile(base_profile, dataclasses.replace(truth, shot=truth.shot / 4, read=truth.read / 4))
     burst = bursts.read_burst(folder)
     assert all(info.noise_profile is None for info in burst.infos)
     result = denoising.run_burst_check(burst, low_noise, rows=("upi", "shipped", "truth", "real"),
-                                       contents=("scene",), seeds=(0, 1), max_steps=600,
+                                       contents=("scene",), seeds=(0, 1), max_steps=denoising.MAX_STEPS,
                                        truth_noise=(truth.shot, truth.read))
+    print(result.summary())   # the figures of docs/pages/validation/downstream_denoising.md (pytest -rP)
     return result
 
 
@@ -257,8 +263,9 @@ def _assert_ranked(result):
     assert not_below("real", "truth"), psnr
     for other in ("upi", "shipped"):
         assert not_below("truth", other), (other, psnr)
-    assert np.mean(psnr["truth"]) > result.noisy_psnr + 1.0, (psnr, result.noisy_psnr)
-    assert result.step_curve and result.steps <= 600
+    assert np.mean(psnr["truth"]) > result.noisy_psnr + denoising.MIN_LEARNED_DB, (psnr, result.noisy_psnr)
+    assert result.step_curve and result.last_round_gain() <= denoising.MIN_GAIN_DB, result.step_curve
+    assert "NO VERDICT" not in result.sentence(), result.sentence()
 
 
 @pytest.mark.slow
@@ -269,9 +276,19 @@ def test_dim_defocused_burst_ranks_real_pairs_then_truth(tmp_path, base_profile)
 
 
 @pytest.mark.slow
-def test_bright_burst_ranks_real_pairs_then_truth(tmp_path, base_profile):
-    result = _ranked_check(tmp_path, base_profile, DIM, 0.1, 0.8, blur=0.0)
+def test_bright_defocused_burst_ranks_real_pairs_then_truth(tmp_path, base_profile):
+    """The same sensor, the scene at 10-80 % of the range."""
+    result = _ranked_check(tmp_path, base_profile, DIM, 0.1, 0.8, blur=3.0)
     _assert_ranked(result)
+
+
+@pytest.mark.slow
+def test_bright_sharp_burst_gets_no_verdict(tmp_path, base_profile):
+    """In focus, the dead leaves' edges are texture at the noise's scale: no denoiser gains on the
+    noisy input (all rows within 0.1 dB of it when measured), and the check says it cannot rank."""
+    result = _ranked_check(tmp_path, base_profile, DIM, 0.1, 0.8, blur=0.0)
+    assert result.learned("scene") < denoising.MIN_LEARNED_DB, result.psnr
+    assert "NO VERDICT" in result.sentence() and "no denoiser gains more than" in result.sentence()
 
 
 @pytest.mark.slow

@@ -313,11 +313,12 @@ class DenoisingResult:
         return "\n".join(lines)
 
     def last_round_gain(self) -> float:
-        """dB the real pairs' validation error gained in the last round of the step choice (0 when
-        the steps were given; inf with a single round)."""
+        """dB the real pairs' validation error gained in the last round of the step choice on the
+        best of the rounds before it (what the patience rule weighs; 0 when the steps were given,
+        inf with a single round)."""
         if not self.step_curve:
             return 0.0
-        return self.step_curve[-2] - self.step_curve[-1] if len(self.step_curve) > 1 else float("inf")
+        return min(self.step_curve[:-1]) - self.step_curve[-1] if len(self.step_curve) > 1 else float("inf")
 
     def learned(self, content: str = "scene") -> float:
         """dB the best row's mean PSNR on `content` lies above the noisy input (NaN without rows)."""
