@@ -240,9 +240,8 @@ DIM = BurstTruth(black_tag=60.0, white=1023.0, shot=5.2e-4, read=2.4e-6, iso=100
 
 def _ranked_check(tmp_path, base_profile, truth, low, high, blur):
     """The check on a burst of known truth: rows truth, UPI, a profile with 4x too little noise,
-    real pairs; content-equal; two seeds; steps chosen by validation (the product's cap). 256 x 384
-    frames: a burst of 96 x 128 (two training means of 48 x 64 planes a fold) let the denoisers
-    learn their few fixed noise realisations, which UPI's larger noise masks best."""
+    real pairs; content-equal; two seeds; steps chosen by validation (the product's cap); 256 x 384
+    frames, so that each fold's two training means hold more than 48 x 64 planes of content."""
     folder = tmp_path / "burst"
     profile = truth_profile(base_profile, truth)
     bursts.write_synthetic_burst(folder, profile, n_frames=8, height=256, width=384, iso=truth.iso, seed=5,
