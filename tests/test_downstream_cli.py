@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+from downstream_helpers import write_camera_folders
 from PIL import Image
 
 import g2r_jax
@@ -16,19 +17,8 @@ from g2r_jax.cli import downstream
 @pytest.fixture(scope="module")
 def camera_folders(tmp_path_factory):
     """14 DNGs of a NikonD40 (dead-leaves scenes under drawn lights), 4 CG PNGs, one broken file each."""
-    from g2r_jax.audit import scenes, simulate
-    from g2r_jax.io.dng_write import write_dng
-
-    root = tmp_path_factory.mktemp("downstream")
-    dngs, cg = root / "dngs", root / "cg"
-    dngs.mkdir()
-    cg.mkdir()
-    profile = g2r_jax.load_profile("NikonD40")
-    for i, (mosaic, info) in enumerate(simulate.simulate(profile, scenes.scene_set(14, 3, 144, 192), 1)):
-        write_dng(dngs / f"real_{i:02d}.dng", mosaic, info)
+    dngs, cg = write_camera_folders(tmp_path_factory.mktemp("downstream"), 14, 4)
     (dngs / "zz_truncated.dng").write_bytes((dngs / "real_00.dng").read_bytes()[:2000])
-    for i, scene in enumerate(scenes.scene_set(4, 9, 160, 224)):
-        Image.fromarray((np.clip(scene, 0, 1) * 255).round().astype(np.uint8) if scene.dtype != np.uint8 else scene).save(cg / f"render_{i}.png")
     (cg / "tiny.png").write_bytes(b"\x89PNG\r\n\x1a\nnot really")
     return dngs, cg
 

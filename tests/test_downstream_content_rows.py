@@ -9,6 +9,7 @@ import json
 import jax
 import numpy as np
 import pytest
+from downstream_helpers import write_camera_folders
 
 import g2r_jax
 from g2r_jax.downstream import content_rows, estimators, experiment, real_sets, training_sets
@@ -160,21 +161,7 @@ def test_content_rows_are_not_default_and_an_unknown_row_is_refused_by_name(tmp_
 @pytest.fixture(scope="module")
 def camera_folders(tmp_path_factory):
     """12 DNGs of a NikonD40 (dead-leaves scenes under drawn lights) and 3 CG PNGs."""
-    from PIL import Image
-
-    from g2r_jax.audit import scenes, simulate
-    from g2r_jax.io.dng_write import write_dng
-
-    root = tmp_path_factory.mktemp("content_rows")
-    dngs, cg = root / "dngs", root / "cg"
-    dngs.mkdir()
-    cg.mkdir()
-    profile = g2r_jax.load_profile("NikonD40")
-    for i, (mosaic, info) in enumerate(simulate.simulate(profile, scenes.scene_set(12, 3, 144, 192), 1)):
-        write_dng(dngs / f"real_{i:02d}.dng", mosaic, info)
-    for i, scene in enumerate(scenes.scene_set(3, 9, 160, 224)):
-        Image.fromarray((np.clip(scene, 0, 1) * 255).round().astype(np.uint8)).save(cg / f"render_{i}.png")
-    return dngs, cg
+    return write_camera_folders(tmp_path_factory.mktemp("content_rows"), 12, 3)
 
 
 def test_the_flag_asks_run_check_for_the_content_rows(tmp_path, monkeypatch, capsys):
