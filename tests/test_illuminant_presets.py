@@ -181,3 +181,23 @@ def test_trial_fits_after_a_failure_print_their_warnings_once(tmp_path, capsys, 
     lines = [line for line in err.splitlines() if "no usable NoiseProfile" in line]
     assert len(lines) == 1 and "r02.dng" not in lines[0], err
     assert "r02.dng: dropped" in err
+
+
+def test_fit_profile_names_the_illuminant_model_it_chose_not_its_stored_family():
+    """A pooled model is stored as a kernel density (`IlluminantModel.kind` 'kernel'); g2r-fit-profile's
+    "wrote ... (X illuminant model" line named it 'kernel' when 'auto' had chosen 'pooled'."""
+    from g2r_jax.cli.fit_profile import illuminant_model_name
+
+    colour = load_profile("Canon5D").colour
+    tags = colour.dng_tags()
+
+    def infos(count):
+        return [DngInfo(path=f"f{k}.dng", cfa_pattern=(0, 1, 1, 2), black_level=np.full(4, 128.0), white_level=4095.0,
+                        calibration_illuminants=tags["calibration_illuminants"],
+                        color_matrices=tuple(tags["color_matrices"]), unique_camera_model="Canon EOS 5D",
+                        as_shot_neutral=neutral, noise_profile=np.array([[2e-5, 1e-7]]), iso=100)
+                for k, neutral in enumerate(_daylight_neutrals(colour, np.linspace(4800, 7500, count)))]
+
+    few = fit_profile(infos(3))
+    assert few.illuminants.kind == "kernel" and illuminant_model_name(few) == "pooled", few.info.provenance
+    assert illuminant_model_name(fit_profile(infos(3), illuminant_model="locus")) == "locus"

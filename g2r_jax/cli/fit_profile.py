@@ -261,7 +261,7 @@ def _write_profile(profile, args, infos, failures) -> None:
         print(f"g2r-fit-profile: note: removed {removed} temporary file(s) of {shown(args.output.name)} left by an "
               "earlier run that was stopped", file=sys.stderr)
     save_profile(profile, args.output)
-    print(f"g2r-fit-profile: wrote {args.output} ({profile.illuminants.kind} illuminant model, "
+    print(f"g2r-fit-profile: wrote {args.output} ({illuminant_model_name(profile)} illuminant model, "
           f"{len(infos)} file(s); {len(failures)} failed)")
     if not args.quiet:
         print(f"g2r-fit-profile: illuminant model: {one_line(illuminant_reason(profile))}")
@@ -344,6 +344,16 @@ def illuminant_reason(profile) -> str:
     from g2r_jax.profile.fitting import ILLUMINANTS_PROVENANCE
 
     return profile.info.provenance.rpartition(ILLUMINANTS_PROVENANCE)[2] or profile.illuminants.kind
+
+
+def illuminant_model_name(profile) -> str:
+    """The illuminant model's name as the user chooses it ('pooled', 'kernel', 'locus', ...): the
+    first word of its reason (`illuminants.choice.choose_illuminant_model`); the stored family
+    (`IlluminantModel.kind`, 'kernel' for a pooled model too) where the provenance has none."""
+    from g2r_jax.illuminants.choice import KINDS
+
+    word = illuminant_reason(profile).split(" ", 1)[0]
+    return word if word in KINDS else profile.illuminants.kind
 
 
 def colour_outlier(infos, candidates):
