@@ -167,7 +167,7 @@ def summary(path: Path) -> str:
         cells.setdefault((r["content"], r["estimator"], r["model"], str(r["lights"]), r["camera"]), []).append(r["mean"])
     out = ["| content | estimator | model | lights | " + " | ".join(cameras) + " | mean of cameras |",
            "|---|---|---|---|" + "---|" * (len(cameras) + 1)]
-    order = {str(k): i for i, k in enumerate([0, 1, 3, 5, 10, 25, "all"])}
+    order = {str(k): i for i, k in enumerate([0, 1, 3, 5, 10, 25, 75, "all"])}
     for content, estimator, model, lights in sorted({k[:4] for k in cells},
                                                     key=lambda k: (k[0], k[1], MODELS.index(k[2]) if k[2] in MODELS
                                                                    else -1, order.get(k[3], 99))):
@@ -184,7 +184,7 @@ def curve(path: Path, content: str, estimator: str) -> str:
     every cell of the table (each camera: the mean over its folds, draws and seeds)."""
     records = [json.loads(line) for line in path.read_text().splitlines()]
     records = [r for r in records if r["content"] == content and r["estimator"] == estimator]
-    counts = [c for c in ("0", "1", "3", "5", "10", "25", "all") if any(str(r["lights"]) == c for r in records)]
+    counts = [c for c in ("0", "1", "3", "5", "10", "25", "75", "all") if any(str(r["lights"]) == c for r in records)]
     models = [m for m in ("shipped", *MODELS) if any(r["model"] == m for r in records)]
     cells = {}
     for r in records:

@@ -139,3 +139,31 @@ def test_unprocess_batch_gives_the_same_bytes_whatever_the_batch():
     single = jax.jit(lambda k, im: unprocess(k, im, profile)[0])
     for i in range(5):
         np.testing.assert_array_equal(np.asarray(single(keys[i], images[i])), everything[i])
+
+
+@pytest.mark.slow
+def test_ray_engine_converts_a_profile_edited_in_memory_as_it_is(tmp_path):
+    """g2r-convert --engine ray used to refuse --content-model / --no-content-model: its tasks loaded
+    the profile file as it was. Now the driver's profile object goes to the tasks: a content model
+    switched on in memory gives the local engine's bytes, and differs from the file's profile."""
+    ray = pytest.importorskip("ray")
+    from g2r_jax.batch.conversion import ConvertOptions, convert_files
+    from g2r_jax.batch.distributed import convert_files_ray
+    from g2r_jax.content import content_model
+    from g2r_jax.profile.schema import load_profile, replace
+
+    files = _write_inputs(tmp_path / "in")[:4]
+    edited = replace(load_profile("Canon600D"), content=content_model(0.4, apply_by_default=True))
+    options = ConvertOptions(seed=2, batch_size=2, progress=False)
+    local = convert_files(files, edited, tmp_path / "local", options=options)
+    ray.init(num_cpus=2, include_dashboard=False, ignore_reinit_error=True)
+    try:
+        distributed = convert_files_ray(files, edited, tmp_path / "ray", options=options, files_per_task=2)
+        as_file = convert_files_ray(files, "Canon600D", tmp_path / "file", options=options, files_per_task=2)
+    finally:
+        ray.shutdown()
+    assert local.ok and distributed.ok and as_file.ok, (local.errors, distributed.errors, as_file.errors)
+    for path in files:
+        name = f"{path.stem}.dng"
+        assert _digest(tmp_path / "local" / name) == _digest(tmp_path / "ray" / name), path.name
+        assert _digest(tmp_path / "file" / name) != _digest(tmp_path / "ray" / name), path.name

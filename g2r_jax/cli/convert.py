@@ -149,9 +149,6 @@ def _content_choice(profile, args, say):
     from g2r_jax.profile.schema import replace
 
     model = profile.content
-    if args.engine == "ray" and (args.content_model or args.no_content_model):
-        raise ValueError("--content-model / --no-content-model: not with --engine ray (its workers load the "
-                         "profile file as it is)")
     if args.content_model and model is None:
         raise ValueError(f"--content-model: profile {shown(profile.info.name)} has no content model "
                          "(g2r-fit-profile fits one from the camera's DNGs)")
@@ -221,7 +218,7 @@ def body(args) -> int:
     report = lambda line: print(f"g2r-convert: error: {one_line(line)}", file=sys.stderr)
     if args.engine == "ray":
         from g2r_jax.batch.distributed import convert_files_ray
-        result = convert_files_ray(files, profile_name, args.output, neutrals=neutrals, options=options, on_error=report)
+        result = convert_files_ray(files, profile, args.output, neutrals=neutrals, options=options, on_error=report)
     else:
         result = convert_files(files, profile, args.output, neutrals=neutrals, options=options, on_error=report)
     failed = len(errors) + len(result.errors)
