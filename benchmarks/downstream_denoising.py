@@ -4,7 +4,7 @@ out), the noise models and the timings.
 
     python benchmarks/downstream_denoising.py [FOLDER] [--profile NAME_OR_JSON] [--seeds 0 1 2]
         [--steps N | --max-steps 3000] [--folds 2] [--cg 16] [--cg-folder ../shared/data/cg/carla]
-        [--profile-noise-scale 1] [--dim]
+        [--profile-noise-scale 1] [--dim] [--content-chroma S] [--rows truth,upi] [--contents cg]
 
 FOLDER: DNGs of one static scene from one camera (bad files are named and skipped). Without it,
 a synthetic burst of 8 frames (192 x 256, a dim dead-leaves scene, no NoiseProfile tag) is made
@@ -41,6 +41,12 @@ def main(argv=None):
     parser.add_argument("--profile-noise-scale", type=float, default=1.0,
                         help="multiply the profile's noise variance by this for the rows (not for the synthetic "
                              "burst): a deliberately wrong profile")
+    parser.add_argument("--content-chroma", type=float, default=None,
+                        help="give the rows' profile (not the synthetic burst) a content model of this chroma "
+                             "scale, applied (issue 32: it must not hurt the CG rows)")
+    parser.add_argument("--rows", default=",".join(("upi", "shipped", "fitted", "truth", "real")),
+                        help="comma-separated rows of the check")
+    parser.add_argument("--contents", default="cg,scene", help="comma-separated contents: cg, scene")
     args = parser.parse_args(argv)
 
     import g2r_jax
@@ -51,7 +57,7 @@ def main(argv=None):
     cg = sorted(args.cg_folder.glob("*.png"))[:args.cg] if args.cg else []
     if args.cg and not cg:
         print(f"no CG images in {args.cg_folder}: CG content left out")
-    contents = ("cg", "scene") if cg else ("scene",)
+    contents = tuple(c for c in args.contents.split(",") if c != "cg" or cg)
     with tempfile.TemporaryDirectory() as scratch:
         folder = args.folder
         if folder is None and args.dim:
@@ -77,8 +83,15 @@ def main(argv=None):
                                    read=profile.noise.read * args.profile_noise_scale)
             profile = schema.replace(profile, noise=noise)
             print(f"the rows' profile has {args.profile_noise_scale:g} times the noise variance of {args.profile}")
+        if args.content_chroma is not None:
+            from g2r_jax.content import content_model
+            from g2r_jax.profile import schema
+
+            profile = schema.replace(profile, content=content_model(args.content_chroma, apply_by_default=True))
+            print(f"the rows' profile applies a content model of chroma scale {args.content_chroma:g} to the CG images")
         read_s = time.perf_counter() - started
-        result = denoising.run_burst_check(burst, profile, cg, contents=contents, seeds=args.seeds,
+        result = denoising.run_burst_check(burst, profile, cg, rows=tuple(args.rows.split(",")), contents=contents,
+                                           seeds=args.seeds,
                                            steps=args.steps, max_steps=args.max_steps, folds=args.folds,
                                            cg_count=args.cg, progress=lambda line: print("  " + line, flush=True))
     total = time.perf_counter() - started
