@@ -6,7 +6,9 @@ folds by `measure.folds_of`, training lights from the training folds only, teste
 Rows: `shipped` (the profile as given, lights 0), and each model of `--models` at each count of
 `--lights`: `prior` and `locus` use no light (lights 0 only); `kernel` needs one; `auto` is what
 g2r-fit-profile fits; `pooled` is `illuminants.pooled` with the camera under test left out of the
-pool (leave-one-camera-out: none of its lights informs its own prior); `pooled-gs` leaves all nine
+pool (leave-one-camera-out: none of its lights informs its own prior); `upi` (lights 0, CG
+content only) is UPI's random cameras on the same views, as `downstream.experiment`'s upi row;
+`pooled-gs` leaves all nine
 NUS cameras out (only the Gehler-Shi lights: other scenes, since the NUS cameras shot many of the
 same scenes, so `pooled` may know the test camera's scenes' lights from its siblings). Each count below all is
 drawn `--draws` times per fold (a different random subset of the fold's training lights each).
@@ -55,7 +57,7 @@ def model_for(name, camera, profile, lights):
     from g2r_jax.profile.schema import replace
 
     points = neutral_to_chromaticity(np.asarray(lights, np.float64).reshape(-1, 3))
-    if name == "shipped":
+    if name in ("shipped", "upi"):    # upi: UPI's random cameras (`run_camera` makes its set)
         return profile if len(points) == 0 else None
     if (name in NO_LIGHT_MODELS and len(points)) or (name == "kernel" and not len(points)):
         return None
@@ -133,7 +135,11 @@ def run_camera(camera, args, out, say):
                                 continue
                             start = time.perf_counter()
                             salt = 1000 * seed + 10 * fold + 4
-                            if content == "cg":
+                            if name == "upi" and content == "cg":    # as `downstream.experiment`'s upi row
+                                images, labels = sets.upi_set(sets.linear_to_srgb_views(views), seed + 1)
+                            elif name == "upi":
+                                continue
+                            elif content == "cg":
                                 images, labels = sets.g2r_set(views, fitted, salt)
                             else:
                                 if not relit:   # the training folds' real images, once per fold
@@ -142,7 +148,7 @@ def run_camera(camera, args, out, say):
                                     relit.append(np.concatenate([views_real] * -(-args.n // len(views_real)))[:args.n])
                                 images, labels = sets.g2r_set(relit[0], fitted, salt + 4)
                             for estimator in args.estimators:
-                                key = (fingerprint(fitted), content, estimator)
+                                key = ("upi" if name == "upi" else fingerprint(fitted), content, estimator)
                                 if key not in trained:
                                     predict = train_estimator(estimator, images, labels, seed=1000 * seed + fold)
                                     trained[key] = angular_error_degrees(predict(real.images[test]),
@@ -185,7 +191,7 @@ def curve(path: Path, content: str, estimator: str) -> str:
     records = [json.loads(line) for line in path.read_text().splitlines()]
     records = [r for r in records if r["content"] == content and r["estimator"] == estimator]
     counts = [c for c in ("0", "1", "3", "5", "10", "25", "75", "all") if any(str(r["lights"]) == c for r in records)]
-    models = [m for m in ("shipped", *MODELS) if any(r["model"] == m for r in records)]
+    models = [m for m in ("shipped", "upi", *MODELS) if any(r["model"] == m for r in records)]
     cells = {}
     for r in records:
         cells.setdefault((r["model"], str(r["lights"]), r["camera"]), []).append(r["mean"])
