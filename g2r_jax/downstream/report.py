@@ -50,24 +50,45 @@ def table(result: ExperimentResult) -> str:
     return "\n".join(lines)
 
 
+def seeds_apart(result: ExperimentResult, a: str, b: str, estimator: str):
+    """True when every seed's mean error of row `a` lies on one side of every seed's of row `b`
+    (a difference larger than the training noise the seeds show), False when their ranges
+    overlap, None with fewer than two seeds (the training noise is not measured). An illuminant
+    CNN trained twice on the same data can differ by degrees on a fold (docs validation
+    illuminant_models, "How fine this benchmark can see"), so a difference is named only when
+    the seeds agree on its sign."""
+    if len(result.seeds) < 2:
+        return None
+    x, y = result.summary(a, estimator), result.summary(b, estimator)
+    return bool(x["seed_max"] < y["seed_min"] or y["seed_max"] < x["seed_min"])
+
+
 def sentence(result: ExperimentResult, estimator: str, content_rows=None) -> str:
     """One result sentence for the estimator: g2r_jax against UPI and real training, and where
-    the gap lies."""
+    the gap lies; a difference whose seeds overlap is called within training noise
+    (`seeds_apart`)."""
     mean = {r: result.summary(r, estimator)["mean"] for r in result.rows}
     parts = []
-    ours = mean.get("fitted", mean.get("shipped"))
-    if ours is None:
+    ours_row = "fitted" if "fitted" in mean else "shipped" if "shipped" in mean else None
+    if ours_row is None:
         return f"{estimator}: " + ", ".join(f"{ROWS[r]} {v:.2f} deg" for r, v in mean.items())
+    ours = mean[ours_row]
     parts.append(f"an estimator ({estimator}) trained on g2r_jax RAW of the CG images errs {ours:.2f} deg "
                  f"on the real files")
     others = [f"{label} {mean[r]:.2f}" for r, label in (("upi", "UPI"), ("real", "trained on the real files"))
               if r in mean]
+    if "upi" in mean and seeds_apart(result, ours_row, "upi", estimator) is False:
+        others[0] += ", within training noise of g2r_jax"
     if others:
         parts[-1] += f" ({', '.join(others)})"
+    if len(result.seeds) < 2:
+        parts[-1] += "; one seed: the training noise is not measured"
     split = decomposition(result, estimator)
     if split["gap"] is not None and split["profile"] is not None:
+        noise = (" (within training noise)" if seeds_apart(result, "real_profile_light", "real", estimator) is False
+                 else "")
         parts.append(f"of the {split['gap']:.2f} deg gap to real training, {split['profile']:.2f} is the profile "
-                     f"(colour and lights) and {split['content']:.2f} the CG content")
+                     f"(colour and lights){noise} and {split['content']:.2f} the CG content")
         measured = [r for r in content_rows or () if r.get("spread", True) and np.isfinite(r["excess"])]
         if measured and split["content"] > max(split["profile"], 0.0) and measured[0]["excess"] > 1:
             top = measured[0]
