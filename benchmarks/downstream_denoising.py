@@ -51,6 +51,7 @@ def main(argv=None):
 
     import g2r_jax
     from g2r_jax.downstream import bursts, denoising
+    from g2r_jax.profile import schema
 
     started = time.perf_counter()
     profile = g2r_jax.load_profile(args.profile)
@@ -77,15 +78,12 @@ def main(argv=None):
                   f"noise shot {truth.shot:.3g}, read {truth.read:.3g} (normalised, before rounding)")
         burst = bursts.read_burst(folder)
         if args.profile_noise_scale != 1.0:
-            from g2r_jax.profile import schema
-
             noise = schema.replace(profile.noise, shot=profile.noise.shot * args.profile_noise_scale,
                                    read=profile.noise.read * args.profile_noise_scale)
             profile = schema.replace(profile, noise=noise)
             print(f"the rows' profile has {args.profile_noise_scale:g} times the noise variance of {args.profile}")
         if args.content_chroma is not None:
             from g2r_jax.content import content_model
-            from g2r_jax.profile import schema
 
             profile = schema.replace(profile, content=content_model(args.content_chroma, apply_by_default=True))
             print(f"the rows' profile applies a content model of chroma scale {args.content_chroma:g} to the CG images")

@@ -34,6 +34,16 @@ def _daylight_neutrals(colour, ccts):
     return [np.asarray(dng.xy_to_camera_neutral(jnp.asarray(CCT_to_xy(c)[0]), colour), np.float64) for c in ccts]
 
 
+def _daylight_infos(colour, count):
+    """Tags of `count` Canon 5D files (this colour model's matrices) shot in daylight, 4800-7500 K."""
+    tags = colour.dng_tags()
+    return [DngInfo(path=f"f{k}.dng", cfa_pattern=(0, 1, 1, 2), black_level=np.full(4, 128.0), white_level=4095.0,
+                    calibration_illuminants=tags["calibration_illuminants"], color_matrices=tuple(tags["color_matrices"]),
+                    unique_camera_model="Canon EOS 5D", as_shot_neutral=neutral,
+                    noise_profile=np.array([[2e-5, 1e-7]]), iso=100)
+            for k, neutral in enumerate(_daylight_neutrals(colour, np.linspace(4800, 7500, count)))]
+
+
 def test_a_one_matrix_d65_camera_fits_although_its_matrix_cannot_carry_all_night_lights():
     """The Canon 5D profile has one D65 ColorMatrix; through it the warmest night lights get a
     negative blue neutral. That used to end every fit ("no valid profile"); now those lights are
@@ -42,12 +52,7 @@ def test_a_one_matrix_d65_camera_fits_although_its_matrix_cannot_carry_all_night
     night = ch.choose_illuminant_model(np.zeros((0, 2)), colour, "prior-night")
     assert 0.0 < _left_out_share(night.reason) < P.MAX_UNREPRESENTABLE, night.reason
     assert _left_out_share(ch.choose_illuminant_model(np.zeros((0, 2)), colour, "prior").reason) == 0.0
-    tags = colour.dng_tags()
-    infos = [DngInfo(path=f"f{k}.dng", cfa_pattern=(0, 1, 1, 2), black_level=np.full(4, 128.0), white_level=4095.0,
-                     calibration_illuminants=tags["calibration_illuminants"], color_matrices=tuple(tags["color_matrices"]),
-                     unique_camera_model="Canon EOS 5D", as_shot_neutral=neutral,
-                     noise_profile=np.array([[2e-5, 1e-7]]), iso=100)
-             for k, neutral in enumerate(_daylight_neutrals(colour, np.linspace(4800, 7500, 12)))]
+    infos = _daylight_infos(colour, 12)
     for kind in ("auto", "kernel", "prior-night", "prior-day-night"):
         profile = fit_profile(infos, illuminant_model=kind)
         assert np.all(np.isfinite(np.asarray(profile.illuminants.means))), kind
@@ -188,16 +193,7 @@ def test_fit_profile_names_the_illuminant_model_it_chose_not_its_stored_family()
     "wrote ... (X illuminant model" line named it 'kernel' when 'auto' had chosen 'pooled'."""
     from g2r_jax.cli.fit_profile import illuminant_model_name
 
-    colour = load_profile("Canon5D").colour
-    tags = colour.dng_tags()
-
-    def infos(count):
-        return [DngInfo(path=f"f{k}.dng", cfa_pattern=(0, 1, 1, 2), black_level=np.full(4, 128.0), white_level=4095.0,
-                        calibration_illuminants=tags["calibration_illuminants"],
-                        color_matrices=tuple(tags["color_matrices"]), unique_camera_model="Canon EOS 5D",
-                        as_shot_neutral=neutral, noise_profile=np.array([[2e-5, 1e-7]]), iso=100)
-                for k, neutral in enumerate(_daylight_neutrals(colour, np.linspace(4800, 7500, count)))]
-
-    few = fit_profile(infos(3))
+    infos = _daylight_infos(load_profile("Canon5D").colour, 3)
+    few = fit_profile(infos)
     assert few.illuminants.kind == "kernel" and illuminant_model_name(few) == "pooled", few.info.provenance
-    assert illuminant_model_name(fit_profile(infos(3), illuminant_model="locus")) == "locus"
+    assert illuminant_model_name(fit_profile(infos, illuminant_model="locus")) == "locus"

@@ -101,13 +101,10 @@ def _require_ray():
 
 
 def _convert_chunk(files, profile, out_dir, neutrals, options, names=None):
-    """One Ray task: the local batch driver on a chunk of files, without the manifest. `profile`:
-    a `SensorProfile` (Ray hands the task the driver's object) or a name or path to load."""
+    """One Ray task: the local batch driver on a chunk of files, without the manifest (`profile`:
+    the driver's `SensorProfile`, which Ray hands over from its object store)."""
     from g2r_jax.batch.conversion import convert_files
-    from g2r_jax.profile.schema import load_profile
 
-    if isinstance(profile, (str, Path)):
-        profile = load_profile(profile)
     result = convert_files(files, profile, out_dir, neutrals=neutrals, options=options,
                            write_manifest=False, names=names)
     return result.records, result.errors
@@ -118,9 +115,9 @@ def convert_files_ray(inputs, profile, out_dir, *, neutrals=None, options=None, 
     """`convert_files` on a Ray cluster: the same DNGs, byte for byte, and one manifest.
 
     **Arguments:** `inputs`: image paths (in the order rows of `neutrals` apply); `profile`: a
-    `SensorProfile` (put once in Ray's object store and shared by the tasks, so a profile edited
-    in memory, e.g. its content model turned off, converts as it is) or a shipped profile name or
-    a JSON path, loaded by each task; `out_dir`: must be reachable
+    `SensorProfile`, or a shipped profile name or JSON path loaded here; either way put once in
+    Ray's object store and shared by the tasks (a profile edited in memory, e.g. its content
+    model turned off, converts as it is); `out_dir`: must be reachable
     from every node (a shared filesystem on a multi-machine cluster); `neutrals`: optional
     (N, 3); `options`: `ConvertOptions`; `on_error`: called with each error line;
     `files_per_task`: chunk size (default: a few batches, enough chunks to keep every CPU
@@ -139,8 +136,6 @@ def convert_files_ray(inputs, profile, out_dir, *, neutrals=None, options=None, 
     inputs = [p.absolute() for p in given_inputs]      # tasks may run in another working directory
     out_dir = given_out_dir.absolute()
     out_dir.mkdir(parents=True, exist_ok=True)
-    if isinstance(profile, (str, Path)) and Path(profile).is_file():
-        profile = str(Path(profile).absolute())
     errors = []
 
     def report(line):
@@ -165,8 +160,11 @@ def convert_files_ray(inputs, profile, out_dir, *, neutrals=None, options=None, 
         workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
         files_per_task = max(options.batch_size, math.ceil(len(keep) / (4 * workers) / options.batch_size) * options.batch_size)
     task = ray.remote(_convert_chunk).options(**(ray_remote_args or {"num_cpus": 1}))
-    if not isinstance(profile, (str, Path)):
-        profile = ray.put(profile)    # once, not once per task
+    if isinstance(profile, (str, Path)):
+        from g2r_jax.profile.schema import load_profile
+
+        profile = load_profile(profile)
+    profile = ray.put(profile)    # once, not once per task
     pending = {}
     for start in range(0, len(keep), files_per_task):
         chunk = keep[start:start + files_per_task]
