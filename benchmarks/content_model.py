@@ -22,6 +22,7 @@ Protocol, per camera and seed (the 3 folds of the downstream benchmark, `g2r_jax
 
     python benchmarks/content_model.py [--cameras Canon600D,NikonD40] [--seeds 1] [--first-seed 0] [--n 300]
         [--estimators cnn,moments] [--families chroma,chroma_tone,chroma@0.5] [--select-estimator moments]
+        [--fixed cast@0]
         [--jobs 1] [--json out/content_model.json] [--markdown out/content_model.md]
     python benchmarks/content_model.py --fit-speed 300     # the g2r-fit-profile step's time
     python benchmarks/content_model.py --apply-speed       # unprocess with the model on and off
@@ -74,7 +75,7 @@ def run_camera(job) -> dict:
     from g2r_jax.runtime import compile_cache
 
     compile_cache.enable(program="g2r_jax-downstream")
-    name, estimators, seeds, n, families, select_estimator = job
+    name, estimators, seeds, n, families, select_estimator, fixed = job
     start = time.perf_counter()
     linear = training_sets.linear_images([np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))])
     real = real_sets.load_nus(NUS / f"{name}.npz")
@@ -87,12 +88,17 @@ def run_camera(job) -> dict:
         parts = {key: [] for key in errors}
         for fold, test in enumerate(folds_of(len(real.images), 3, 0, groups=getattr(real, "groups", None))):
             train = np.setdiff1d(np.arange(len(real.images)), test)
-            choice = content_rows.fold_content_model(
-                real, train, views, profile, lambda lights: experiment.fitted_illuminants(profile, lights, "auto", seed),
-                candidates=("identity",) + families, estimator=select_estimator, seed=seed, fold=fold)
+            if fixed:
+                choice = content_rows.FoldChoice(model=content_rows.candidate_model(
+                    fixed, real.images[train], real.illuminants[train], views, profile), name=fixed, errors={})
+            else:
+                choice = content_rows.fold_content_model(
+                    real, train, views, profile, lambda lights: experiment.fitted_illuminants(profile, lights, "auto", seed),
+                    candidates=("identity",) + families, estimator=select_estimator, seed=seed, fold=fold)
             family, selection, model = choice.name, choice.errors, choice.model
             chosen.append({"seed": seed, "fold": fold, "family": family, "selection_errors": selection,
-                           "chroma_scale": float(model.chroma_scale), "tone_power": float(model.tone_power)})
+                           "chroma_scale": float(model.chroma_scale), "tone_power": float(model.tone_power),
+                           "cast_scale": float(model.cast_scale)})
             fitted = experiment.fitted_illuminants(profile, real.illuminants[train], "auto", seed)
             for row, build in _row_sets(real, train, views, srgb_views, model, fitted, seed, fold).items():
                 images, labels = build()
@@ -101,7 +107,8 @@ def run_camera(job) -> dict:
                     parts[f"{row}/{estimator}"].append(
                         angular_error_degrees(predict(real.images[test]), real.illuminants[test]))
             _say(f"{name}: seed {seed} fold {fold + 1}/3: {family} (s {float(model.chroma_scale):.3f}, "
-                 f"p {float(model.tone_power):.3f}; selection {selection}) ({time.perf_counter() - start:.0f} s)")
+                 f"p {float(model.tone_power):.3f}, c {float(model.cast_scale):.3f}; selection {selection}) "
+                 f"({time.perf_counter() - start:.0f} s)")
         for key, values in parts.items():
             errors[key].append(np.concatenate(values).tolist())
     return {"camera": name, "errors": errors, "chosen": chosen, "seconds": time.perf_counter() - start}
@@ -118,10 +125,11 @@ def tables(results: dict, estimators) -> str:
     for e in estimators:
         out += [f"**{e}** (mean angular error, degrees, pooled over seeds and folds)", "",
                 "| camera | " + " | ".join(ROWS) + " | fitted / real | fitted+content / real | "
-                "fitted+content vs upi+content | families kept (s, p) |", "|---|" + "---|" * (len(ROWS) + 4)]
+                "fitted+content vs upi+content | families kept (s, p, c) |", "|---|" + "---|" * (len(ROWS) + 4)]
         means = {name: {r: _mean(res, r, e) for r in ROWS} for name, res in results.items()}
         for name, m in means.items():
-            kept = ", ".join(f"{c['family']} ({c['chroma_scale']:.2f}, {c['tone_power']:.2f})" for c in results[name]["chosen"])
+            kept = ", ".join(f"{c['family']} ({c['chroma_scale']:.2f}, {c['tone_power']:.2f}, {c.get('cast_scale', 1.0):.2f})"
+                             for c in results[name]["chosen"])
             out.append(f"| {name} | " + " | ".join(f"{m[r]:.2f}" for r in ROWS)
                        + f" | {m['fitted'] / m['real']:.2f}x | {m['fitted+content'] / m['real']:.2f}x"
                        + f" | {100 * (1 - m['fitted+content'] / m['upi+content']):+.0f} % | {kept} |")
@@ -205,6 +213,8 @@ def main(argv=None) -> int:
                         help="candidates besides 'identity': chroma and chroma_tone fitted from the statistics, "
                         "chroma@S a chroma scale S given")
     parser.add_argument("--select-estimator", default="moments", help="the estimator that chooses the family")
+    parser.add_argument("--fixed", default="", metavar="CANDIDATE",
+                        help="use this candidate (e.g. cast@0) on every fold, without a selection (no labels used)")
     parser.add_argument("--jobs", type=int, default=1, help="cameras run in this many processes at once")
     parser.add_argument("--json", type=Path)
     parser.add_argument("--markdown", type=Path)
@@ -222,7 +232,8 @@ def main(argv=None) -> int:
         return 2
     cameras, estimators = args.cameras.split(","), tuple(args.estimators.split(","))
     seeds = tuple(range(args.first_seed, args.first_seed + args.seeds))
-    jobs = [(c, estimators, seeds, args.n, tuple(args.families.split(",")), args.select_estimator) for c in cameras]
+    jobs = [(c, estimators, seeds, args.n, tuple(args.families.split(",")), args.select_estimator,
+             args.fixed) for c in cameras]
     start = time.perf_counter()
     results = {}
     if args.jobs > 1:
@@ -250,7 +261,8 @@ def main(argv=None) -> int:
 def _write_json(path: Path, results, args, seconds) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     document = {"seconds": seconds, "n": args.n, "seeds": args.seeds, "families": args.families,
-                "select_estimator": args.select_estimator, "cameras": results}
+                "select_estimator": args.select_estimator,
+                "fixed": args.fixed, "cameras": results}
     temporary = path.with_suffix(".tmp")
     temporary.write_text(json.dumps(document))
     temporary.replace(path)

@@ -145,7 +145,7 @@ def read_illuminant_csv(path: Path):
 
 def _content_choice(profile, args, say):
     """The profile with its content model kept, forced on or dropped as the flags say."""
-    from g2r_jax.content import content_model
+    from g2r_jax.content import describe, with_default
     from g2r_jax.profile.schema import replace
 
     model = profile.content
@@ -157,12 +157,10 @@ def _content_choice(profile, args, say):
     if args.no_content_model:
         return replace(profile, content=None)
     if args.content_model:
-        model = content_model(float(model.chroma_scale), float(model.tone_power), family=model.family,
-                              source=model.source, target=dict(model.target), apply_by_default=True)
+        model = with_default(model, True)
         profile = replace(profile, content=model)
     if model.apply_by_default:
-        say(f"content model: {model.family}, chroma scale {float(model.chroma_scale):.2f}, tone power "
-            f"{float(model.tone_power):.2f} (--no-content-model turns it off)")
+        say(f"content model: {describe(model)} (--no-content-model turns it off)")
     return profile
 
 

@@ -8,6 +8,9 @@ to that of the real images, in the camera's white-balanced RGB:
   sample (both statistics are monotone in their parameter); with medians only, by the
   small-chroma approximation s = real spread / CG spread (log(Y + s d) - log Y ~ s d / Y) and
   p = log(real brightness) / log(CG brightness) (a power p takes a brightness b to about b^p).
+The 'cast' family has no statistic to fit: the measurement fixed it (`model.CAST_KEPT`, every CG
+frame's own cast removed; the real files' casts are about as large as the CG frames', but the CG
+cast is not the drawn light, see the validation page's finding 3).
 Without real images the real medians come from the prior of real scenes
 (`prior.REAL_SCENES`); without CG statistics, from the reference CG set (`prior.REFERENCE_CG`).
 """
@@ -18,7 +21,7 @@ import jax
 import numpy as np
 
 from g2r_jax.content import prior as _prior
-from g2r_jax.content.model import FAMILIES, ContentModel, apply, content_model, identity
+from g2r_jax.content.model import CAST_KEPT, FAMILIES, ContentModel, apply, content_model, identity
 from g2r_jax.content.scene_statistics import SIZE, ContentStatistics, _area_average, statistics
 
 _MEDIANS = ("chroma_spread", "brightness")
@@ -96,6 +99,9 @@ def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str =
         raise ValueError(f"unknown content family {family!r}; expected one of {', '.join(FAMILIES)}")
     if family == "identity":
         return identity()
+    if family == "cast":
+        return content_model(cast_scale=CAST_KEPT, family="cast",
+                             source="fixed by measurement: each CG frame's grey-world cast removed")
     real, real_source = _medians(real_statistics, _prior.REAL_SCENES, "real images")
     if cg_sample is not None:
         scale, power = _parameters_from_sample(real, cg_sample, to_camera, family)

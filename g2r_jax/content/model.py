@@ -1,16 +1,25 @@
 """The content model: a transform of a CG image in scene-linear light (linear sRGB, before the
 camera sees it) that brings its content statistics toward those of the camera's real scenes.
 
-`apply(model, linear)` is pure JAX (jit, vmap, grad). Two parameters, each the identity at 1:
+`apply(model, linear)` is pure JAX (jit, vmap, grad). Three parameters, each the identity at 1:
 - `chroma_scale` s: every pixel's chroma scaled toward its luminance, x' = Y + s (x - Y), Y the
   luminance of linear sRGB (IEC 61966-2-1 Y row): a convex combination for s in [0, 1], so
   non-negative pixels stay non-negative and neutral pixels (and Y) are unchanged. Real
   white-balanced scenes are about half as colourful as CG renders (issue 32; `statistics`).
 - `tone_power` p: x' = peak (x / peak)^p, the image's peak kept: p > 1 darkens the body under
   its highlights (more dynamic range below the peak), p < 1 brightens it.
+- `cast_scale` c (family 'cast'): each image's grey-world cast scaled by c, a von Kries gain per
+  image, x'_k = x_k (Y_m / m_k)^(1 - c), m the image's mean colour and Y_m its luminance: at c = 0
+  the image's mean becomes neutral at the same luminance (the grey-world white balance of
+  Buchsbaum, J. Franklin Inst. 1980, applied to the CG frame). A CG frame's own white point (the
+  render's sun, sky and tone mapping) is unknown, and its cast is not the light the camera
+  simulation draws: in the downstream benchmark it acts as label noise, which is why desaturation
+  helped (docs/pages/validation/content_model.md, "Finding 3").
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -23,7 +32,11 @@ FAMILIES = {
     "identity": "no change",
     "chroma": "chroma scaled toward luminance (s from the chroma spread)",
     "chroma_tone": "chroma scaled toward luminance, then a power on the brightness under the peak",
+    "cast": "each image's grey-world cast scaled by c (c = 0: every CG frame's mean made neutral)",
 }
+# The measurement's choice for 'cast' (no statistic of the real files fits it; finding 3 of the
+# validation page): the CG frame's whole cast removed.
+CAST_KEPT = 0.0
 
 
 class ContentModel(eqx.Module):
@@ -32,22 +45,27 @@ class ContentModel(eqx.Module):
 
     chroma_scale: Float[Array, ""]
     tone_power: Float[Array, ""]
+    cast_scale: Float[Array, ""]
     family: str = eqx.field(static=True, default="identity")
     source: str = eqx.field(static=True, default="")
     target: tuple = eqx.field(static=True, default=())   # ((statistic, real median), ...) it was fitted to
     apply_by_default: bool = eqx.field(static=True, default=False)   # conversion applies it unless told not to
 
 
-def content_model(chroma_scale: float = 1.0, tone_power: float = 1.0, *, family: str = "chroma",
-                  source: str = "", target: dict | None = None, apply_by_default: bool = False) -> ContentModel:
-    """A `ContentModel` from its parameters (checked: s in [0, 1], p in [0.25, 4])."""
+def content_model(chroma_scale: float = 1.0, tone_power: float = 1.0, *, cast_scale: float = 1.0,
+                  family: str = "chroma", source: str = "", target: dict | None = None,
+                  apply_by_default: bool = False) -> ContentModel:
+    """A `ContentModel` from its parameters (checked: s and c in [0, 1], p in [0.25, 4])."""
     if family not in FAMILIES:
         raise ValueError(f"unknown content family {family!r}; expected one of {', '.join(FAMILIES)}")
     if not (np.isfinite(chroma_scale) and 0.0 <= chroma_scale <= 1.0):
         raise ValueError(f"content chroma_scale {chroma_scale!r} must be in [0, 1] (1 = unchanged)")
     if not (np.isfinite(tone_power) and 0.25 <= tone_power <= 4.0):
         raise ValueError(f"content tone_power {tone_power!r} must be in [0.25, 4] (1 = unchanged)")
-    return ContentModel(chroma_scale=jnp.float32(chroma_scale), tone_power=jnp.float32(tone_power), family=family,
+    if not (np.isfinite(cast_scale) and 0.0 <= cast_scale <= 1.0):
+        raise ValueError(f"content cast_scale {cast_scale!r} must be in [0, 1] (1 = unchanged)")
+    return ContentModel(chroma_scale=jnp.float32(chroma_scale), tone_power=jnp.float32(tone_power),
+                        cast_scale=jnp.float32(cast_scale), family=family,
                         source=source, target=tuple(sorted((target or {}).items())),
                         apply_by_default=bool(apply_by_default))
 
@@ -57,12 +75,25 @@ def identity() -> ContentModel:
     return content_model(1.0, 1.0, family="identity", source="identity")
 
 
+def describe(model: ContentModel) -> str:
+    """One line naming the family and the parameters it uses, for the commands' messages."""
+    if model.family == "cast":
+        return f"cast, grey-world cast kept {float(model.cast_scale):.2f}"
+    words = f"{model.family}, chroma scale {float(model.chroma_scale):.2f}"
+    return words + (f", tone power {float(model.tone_power):.2f}" if model.family == "chroma_tone" else "")
+
+
+def with_default(model: ContentModel, apply_by_default: bool) -> ContentModel:
+    """The same model with `apply_by_default` set."""
+    return dataclasses.replace(model, apply_by_default=bool(apply_by_default))
+
+
 def as_matrix(model: ContentModel) -> Float[Array, "3 3"] | None:
     """The transform as a 3 x 3 matrix A on linear sRGB (x' = A x) when it is linear (the
     'identity' and 'chroma' families), else None. A = s I + (1 - s) 1 w^T, w the luminance row:
     row i gives x'_i = s x_i + (1 - s) Y. A colour stage that is itself a matrix on linear sRGB
     takes M A in place of M, so the model costs no pass over the pixels (`pipeline.render_mosaic`)."""
-    if model.family == "chroma_tone":
+    if model.family in ("chroma_tone", "cast"):
         return None
     s = jnp.asarray(model.chroma_scale, jnp.float32)
     if model.family == "identity":
@@ -73,13 +104,16 @@ def as_matrix(model: ContentModel) -> Float[Array, "3 3"] | None:
 
 def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"]) -> Float[Array, "*batch H W 3"]:
     """The content transform of one image (H, W, 3) or a batch (..., H, W, 3) in linear sRGB
-    (values >= 0). The identity model (and s = 1, p = 1) returns its input bit for bit; only the
-    'chroma_tone' family computes the peak and the power (the others stay one element-wise pass).
+    (values >= 0). The identity model (and s = 1, p = 1) returns its input bit for bit; 'chroma'
+    is one element-wise pass; 'chroma_tone' computes each image's peak and the power; 'cast' each
+    image's mean colour and a gain per channel.
 
     **Returns:** float32, same shape, >= 0, each image's peak unchanged by the tone power."""
     x = jnp.asarray(linear, jnp.float32)
     if model.family == "identity":
         return x
+    if model.family == "cast":
+        return _without_cast(x, jnp.asarray(model.cast_scale, jnp.float32))
     weights = [float(w) for w in LUMINANCE]   # element-wise (fuses with the pipeline's other pixel stages)
     luminance = (weights[0] * x[..., 0] + weights[1] * x[..., 1] + weights[2] * x[..., 2])[..., None]
     s = jnp.asarray(model.chroma_scale, jnp.float32)
@@ -91,3 +125,13 @@ def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"]) -> Float[Ar
     safe_peak = jnp.where(peak > 0, peak, 1.0)
     toned = safe_peak * jnp.power(jnp.clip(x / safe_peak, 0.0, None), p)
     return jnp.where(p == 1.0, x, toned)
+
+
+def _without_cast(x, kept):
+    """x'_k = x_k (Y_m / m_k)^(1 - kept) per image (mean over the last three axes but the channel);
+    a channel whose mean is 0 keeps its gain 1."""
+    mean = jnp.mean(x, axis=(-3, -2), keepdims=True)
+    weights = [float(w) for w in LUMINANCE]
+    luminance = weights[0] * mean[..., 0:1] + weights[1] * mean[..., 1:2] + weights[2] * mean[..., 2:3]
+    ratio = jnp.where(mean > 0, luminance / jnp.where(mean > 0, mean, 1.0), 1.0)
+    return x * jnp.power(ratio, 1.0 - kept)

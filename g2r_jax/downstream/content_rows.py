@@ -55,21 +55,25 @@ def adapted_views(model, views: np.ndarray) -> np.ndarray:
 
 
 def candidate_model(name: str, images: np.ndarray, lights: np.ndarray, views: np.ndarray, profile):
-    """The content model of candidate `name`: 'chroma@S' a chroma scale S given; otherwise a family
+    """The content model of candidate `name`: 'chroma@S' a chroma scale S given, 'cast@C' a kept
+    cast C given (family 'cast'); otherwise a family
     of `g2r_jax.content.FAMILIES` fitted to real thumbnails `images` (white-balanced by `lights`,
     as a DNG's AsShotNeutral would) and a sample of the CG `views`, in the camera's white-balanced
     RGB at the median light (`fit_content_model`; 'identity' fits to the identity)."""
     from g2r_jax import content
 
-    if name.startswith("chroma@"):
+    family, given, value = name.partition("@")
+    if given and family in ("chroma", "cast"):
         try:
-            scale = float(name.split("@", 1)[1])
+            value = float(value)
         except ValueError:
-            raise ValueError(f"content candidate {name!r}: expected chroma@S with S a number in [0, 1]") from None
-        return content.content_model(scale, family="chroma", source="given")
+            raise ValueError(f"content candidate {name!r}: expected {family}@S with S a number in [0, 1]") from None
+        if family == "cast":
+            return content.content_model(cast_scale=value, family="cast", source="given")
+        return content.content_model(value, family="chroma", source="given")
     if name not in content.FAMILIES:
         raise ValueError(f"unknown content candidate {name!r}; expected one of "
-                         f"{', '.join(content.FAMILIES)} or chroma@S")
+                         f"{', '.join(content.FAMILIES)}, chroma@S or cast@C")
     real = content.statistics(content.white_balanced_camera_rgb(images, lights), source="training folds")
     neutral = np.median(lights / lights[:, 1:2], axis=0)
     to_camera = content.srgb_to_camera_matrices(neutral[None], profile.colour)[0]
