@@ -4,7 +4,8 @@ out), the noise models and the timings.
 
     python benchmarks/downstream_denoising.py [FOLDER] [--profile NAME_OR_JSON] [--seeds 0 1 2]
         [--steps N | --max-steps 3000] [--folds 2] [--cg 16] [--cg-folder ../shared/data/cg/carla]
-        [--profile-noise-scale 1] [--dim] [--content-chroma S] [--rows truth,upi] [--contents cg]
+        [--profile-noise-scale 1] [--dim] [--content-chroma S | --content-cast C] [--rows truth,upi]
+        [--contents cg]
 
 FOLDER: DNGs of one static scene from one camera (bad files are named and skipped). Without it,
 a synthetic burst of 8 frames (192 x 256, a dim dead-leaves scene, no NoiseProfile tag) is made
@@ -44,6 +45,8 @@ def main(argv=None):
     parser.add_argument("--content-chroma", type=float, default=None,
                         help="give the rows' profile (not the synthetic burst) a content model of this chroma "
                              "scale, applied (issue 32: it must not hurt the CG rows)")
+    parser.add_argument("--content-cast", type=float, default=None,
+                        help="the same with a 'cast' content model keeping this share of each CG frame's cast")
     parser.add_argument("--rows", default=",".join(("upi", "shipped", "fitted", "truth", "real")),
                         help="comma-separated rows of the check")
     parser.add_argument("--contents", default="cg,scene", help="comma-separated contents: cg, scene")
@@ -87,6 +90,13 @@ def main(argv=None):
 
             profile = schema.replace(profile, content=content_model(args.content_chroma, apply_by_default=True))
             print(f"the rows' profile applies a content model of chroma scale {args.content_chroma:g} to the CG images")
+        if args.content_cast is not None:
+            from g2r_jax.content import content_model
+
+            profile = schema.replace(profile, content=content_model(cast_scale=args.content_cast, family="cast",
+                                                                    apply_by_default=True))
+            print(f"the rows' profile applies a 'cast' content model keeping {args.content_cast:g} of each CG "
+                  "frame's cast")
         read_s = time.perf_counter() - started
         result = denoising.run_burst_check(burst, profile, cg, rows=tuple(args.rows.split(",")), contents=contents,
                                            seeds=args.seeds,

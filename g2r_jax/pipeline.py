@@ -177,14 +177,15 @@ def content_stage(linear, conditions, profile, content: bool | None, colour: str
 
     **Returns:** (linear, conditions). A linear model (`content.as_matrix`) before a colour stage
     that is a matrix on linear sRGB is folded into that matrix (M A: the same result to float
-    rounding, no pass over the pixels); otherwise the model transforms the pixels."""
+    rounding, no pass over the pixels but the 'cast' family's mean of the image); otherwise the
+    model transforms the pixels."""
     model = getattr(profile, "content", None)
     if content and model is None:
         raise ValueError(f"content=True, but profile {profile.info.name!r} has no content model "
                          "(g2r-fit-profile fits one)")
     if model is None or content is False or (content is None and not model.apply_by_default):
         return linear, conditions
-    matrix = _content.as_matrix(model)
+    matrix = _content.as_matrix(model, linear)
     if matrix is None or colour not in MATRIX_ON_LINEAR:
         return _content.apply(model, linear), conditions
     return linear, {**conditions, "srgb_to_wb_camera": conditions["srgb_to_wb_camera"] @ matrix}

@@ -46,6 +46,46 @@ def test_tone_power_keeps_the_peak_and_darkens_the_body():
     assert np.all(darker.mean(axis=(1, 2, 3)) < images.mean(axis=(1, 2, 3)))
 
 
+def test_cast_zero_removes_each_images_own_tint_and_keeps_its_luminance():
+    # von Kries: an image tinted by a diagonal gain t (sum of w t = 1) is brought back to its
+    # untinted self when the untinted image's mean is neutral
+    rng = np.random.default_rng(3)
+    neutral_mean = rng.uniform(0.05, 1.0, (3, 64, 64, 1)) * np.ones(3, np.float32)   # grey images
+    colourful = _colourful(3, seed=4)
+    base = (neutral_mean + colourful - colourful.mean(axis=(1, 2), keepdims=True)).clip(0.0, None).astype(np.float32)
+    base *= (base.mean(axis=(1, 2), keepdims=True) @ LUMINANCE)[..., None] / base.mean(axis=(1, 2), keepdims=True)
+    tints = rng.uniform(0.5, 1.5, (3, 1, 1, 3))
+    tints /= (tints @ LUMINANCE)[..., None]
+    tinted = (base * tints).astype(np.float32)
+    removed = np.asarray(content.apply(content.content_model(cast_scale=0.0, family="cast"), tinted))
+    np.testing.assert_allclose(removed, base, rtol=2e-5, atol=1e-6)
+    means = removed.mean(axis=(1, 2))
+    np.testing.assert_allclose(means, np.repeat(means[:, 1:2], 3, 1), rtol=2e-5)
+    np.testing.assert_allclose(means @ LUMINANCE, tinted.mean(axis=(1, 2)) @ LUMINANCE, rtol=2e-5)
+
+
+def test_cast_kept_scales_the_tint_geometrically_and_one_changes_nothing():
+    images = _colourful(4, seed=5) * np.array([1.4, 1.0, 0.6], np.float32)
+    assert np.array_equal(np.asarray(content.apply(content.content_model(cast_scale=1.0, family="cast"), images)), images)
+    half = np.asarray(content.apply(content.content_model(cast_scale=0.5, family="cast"), images))
+    cast_before = np.log(images.mean(axis=(1, 2)) / images.mean(axis=(1, 2))[:, 1:2])
+    cast_half = np.log(half.mean(axis=(1, 2)) / half.mean(axis=(1, 2))[:, 1:2])
+    np.testing.assert_allclose(cast_half, 0.5 * cast_before, atol=1e-4)   # float32 means
+    dark_channel = images.copy()
+    dark_channel[..., 2] = 0.0                    # a channel whose mean is 0 keeps gain 1, no NaN
+    out = np.asarray(content.apply(content.content_model(cast_scale=0.0, family="cast"), dark_channel))
+    assert np.all(np.isfinite(out)) and np.all(out[..., 2] == 0.0)
+
+
+def test_the_cast_family_is_not_fitted_but_fixed_by_the_measurement():
+    model = content.fit_content_model(None, None, family="cast")
+    assert model.family == "cast" and float(model.cast_scale) == content.CAST_KEPT
+    assert float(model.chroma_scale) == 1.0 and content.as_matrix(model) is None
+    assert "cast" in content.describe(model)
+    with pytest.raises(ValueError, match="cast_scale"):
+        content.content_model(cast_scale=-0.1, family="cast")
+
+
 def test_apply_jits_and_vmaps_with_the_model_as_an_argument():
     images = jnp.asarray(_colourful(4))
     run = jax.jit(jax.vmap(content.apply, in_axes=(None, 0)))
@@ -123,9 +163,14 @@ def test_json_round_trip_and_clear_errors():
     assert float(back.chroma_scale) == pytest.approx(0.4) and float(back.tone_power) == pytest.approx(1.2)
     assert back.family == "chroma_tone" and back.apply_by_default is True and back.source == "test"
     assert dict(back.target) == {"chroma_spread": pytest.approx(0.2)}
+    cast = content.content_from_dict(content.content_to_dict(content.content_model(cast_scale=0.0, family="cast")))
+    assert cast.family == "cast" and float(cast.cast_scale) == 0.0
+    older = {k: v for k, v in document.items() if k != "cast_scale"}   # blocks written before the family
+    assert float(content.content_from_dict(older).cast_scale) == 1.0
     for bad, where in (({**document, "family": "x"}, "content.family"),
                        ({**document, "chroma_scale": "half"}, "content.chroma_scale"),
                        ({**document, "chroma_scale": 2.0}, "content"),
+                       ({**document, "cast_scale": 1.5}, "content"),
                        ({**document, "apply_by_default": "yes"}, "content.apply_by_default"),
                        ({**document, "extra": 1}, "unknown keys")):
         with pytest.raises(ValueError, match=where):

@@ -46,17 +46,21 @@ def test_the_content_model_changes_the_mosaic_when_on():
 
 
 @pytest.mark.parametrize("colour, family", [("matrix", "chroma"), ("spectral", "chroma"),
-                                            ("spectral-jakob2019", "chroma"), ("matrix", "chroma_tone")])
+                                            ("spectral-jakob2019", "chroma"), ("matrix", "chroma_tone"),
+                                            ("matrix", "cast")])
 def test_folded_content_model_equals_the_transform_of_the_pixels(colour, family):
     """A linear model folded into the colour matrix (no pass over the pixels) gives the mosaic of
-    the image transformed first; 'chroma_tone' (not linear) and the Jakob-Hanika stage (not a
-    matrix) take the transform on the pixels."""
+    the image transformed first ('cast': a diagonal matrix of each image's gains); 'chroma_tone'
+    (not linear) and the Jakob-Hanika stage (not a matrix) take the transform on the pixels."""
     profile = g2r_jax.load_profile("Canon600D")
     if colour != "matrix":
         profile = attach_spectral(profile)
-    model = content.content_model(0.35, 1.3 if family == "chroma_tone" else 1.0, family=family)
-    assert (content.as_matrix(model) is None) == (family == "chroma_tone")
-    linear = np.random.default_rng(1).uniform(0.0, 1.0, (32, 48, 3)).astype(np.float32)
+    model = content.content_model(0.35, 1.3 if family == "chroma_tone" else 1.0, family=family,
+                                  cast_scale=0.0 if family == "cast" else 1.0)
+    assert (content.as_matrix(model) is None) == (family in ("chroma_tone", "cast"))
+    if family == "cast":
+        assert content.as_matrix(model, np.ones((4, 4, 3), np.float32)) is not None
+    linear = np.random.default_rng(1).uniform(0.0, 1.0, (32, 48, 3)).astype(np.float32) * np.float32([1.3, 1.0, 0.7])
     key = jax.random.PRNGKey(5)
     options = dict(transfer="linear", noise=False, quantize=False, colour=colour)
     in_the_model, _ = g2r_jax.unprocess(key, linear, replace(profile, content=model), content=True, **options)

@@ -88,13 +88,20 @@ def with_default(model: ContentModel, apply_by_default: bool) -> ContentModel:
     return dataclasses.replace(model, apply_by_default=bool(apply_by_default))
 
 
-def as_matrix(model: ContentModel) -> Float[Array, "3 3"] | None:
-    """The transform as a 3 x 3 matrix A on linear sRGB (x' = A x) when it is linear (the
-    'identity' and 'chroma' families), else None. A = s I + (1 - s) 1 w^T, w the luminance row:
-    row i gives x'_i = s x_i + (1 - s) Y. A colour stage that is itself a matrix on linear sRGB
-    takes M A in place of M, so the model costs no pass over the pixels (`pipeline.render_mosaic`)."""
-    if model.family in ("chroma_tone", "cast"):
+def as_matrix(model: ContentModel, linear=None) -> Float[Array, "3 3"] | None:
+    """The transform as a 3 x 3 matrix A on linear sRGB (x' = A x) when it is linear, else None.
+    'identity' and 'chroma': A = s I + (1 - s) 1 w^T, w the luminance row (row i gives
+    x'_i = s x_i + (1 - s) Y). 'cast': A = diag(gains) of one image, so it needs that image
+    `linear` (H, W, 3) (None without it); zero padding at its edges leaves the gains unchanged
+    (they depend on the ratios of the channel means only). A colour stage that is itself a matrix
+    on linear sRGB takes M A in place of M, so the model costs no pass over the pixels
+    (`pipeline.content_stage`)."""
+    if model.family == "chroma_tone":
         return None
+    if model.family == "cast":
+        if linear is None:
+            return None
+        return jnp.diag(_cast_gains(jnp.asarray(linear, jnp.float32), model.cast_scale).reshape(3))
     s = jnp.asarray(model.chroma_scale, jnp.float32)
     if model.family == "identity":
         s = jnp.float32(1.0)
@@ -127,11 +134,16 @@ def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"]) -> Float[Ar
     return jnp.where(p == 1.0, x, toned)
 
 
-def _without_cast(x, kept):
-    """x'_k = x_k (Y_m / m_k)^(1 - kept) per image (mean over the last three axes but the channel);
-    a channel whose mean is 0 keeps its gain 1."""
+def _cast_gains(x, kept):
+    """(Y_m / m_k)^(1 - kept) per image (means over the two axes before the channel), shaped to
+    multiply `x`; a channel whose mean is 0 keeps its gain 1."""
     mean = jnp.mean(x, axis=(-3, -2), keepdims=True)
     weights = [float(w) for w in LUMINANCE]
     luminance = weights[0] * mean[..., 0:1] + weights[1] * mean[..., 1:2] + weights[2] * mean[..., 2:3]
     ratio = jnp.where(mean > 0, luminance / jnp.where(mean > 0, mean, 1.0), 1.0)
-    return x * jnp.power(ratio, 1.0 - kept)
+    return jnp.power(ratio, 1.0 - jnp.asarray(kept, jnp.float32))
+
+
+def _without_cast(x, kept):
+    """x'_k = x_k (Y_m / m_k)^(1 - kept) per image."""
+    return x * _cast_gains(x, kept)

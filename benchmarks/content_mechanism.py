@@ -1,0 +1,115 @@
+"""Why desaturating the CG frames helps (issue 32, finding 3 of docs/pages/validation/content_model.md):
+is it each pixel's chroma, or each frame's grey-world cast?
+
+Variants of the CARLA views (linear sRGB), each made RAW by g2r_jax under lights fitted to the
+inner two thirds of a NUS camera's training folds, an estimator trained on it and tested on the
+inner third (`g2r_jax.downstream.content_rows.inner_split`: the test fold is not read at all):
+- `identity`; `chroma@S` (x' = Y + S (x - Y): the pixels' chroma *and* the frame's mean cast scaled
+  by S); `cast@C` (only the frame's grey-world cast, by a gain per channel: family 'cast');
+- `chroma@S+cast`: chroma scaled by S, then each frame's mean colour put back (the pixels less
+  colourful, the cast unchanged): the control that separates the two.
+
+    python benchmarks/content_mechanism.py [--cameras Canon600D,NikonD40,SonyA57] [--seed 0] [--n 200]
+        [--estimators moments,cnn] [--variants identity,chroma@0.35,cast@0.35,cast@0,chroma@0.35+cast]
+
+Data: ../shared/data/estimation/nus/<camera>.npz and ../shared/data/cg/carla/*.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from downstream_nus import CARLA, NUS, camera_profile  # noqa: E402
+
+VARIANTS = "identity,chroma@0.35,cast@0.35,cast@0,chroma@0.35+cast,chroma@0.1"
+
+
+def variant_views(name: str, views: np.ndarray) -> np.ndarray:
+    """The views (n, H, W, 3) through variant `name` (see the module docstring)."""
+    from g2r_jax import content
+
+    keep_cast = name.endswith("+cast")
+    family, _, value = name.removesuffix("+cast").partition("@")
+    if family == "identity":
+        model = content.identity()
+    elif family == "chroma":
+        model = content.content_model(float(value), family="chroma")
+    elif family == "cast" and not keep_cast:
+        model = content.content_model(cast_scale=float(value), family="cast")
+    else:
+        raise ValueError(f"unknown variant {name!r}; expected identity, chroma@S, cast@C or chroma@S+cast")
+    out = np.asarray(content.apply(model, views), np.float32)
+    if keep_cast:
+        means = views.mean(axis=(1, 2), keepdims=True)
+        out = out * means / np.maximum(out.mean(axis=(1, 2), keepdims=True), 1e-12)
+    return np.maximum(out, 0.0).astype(np.float32)
+
+
+def run(cameras, variants, estimators, seed: int, n: int) -> dict:
+    """{estimator/variant: {camera: [mean inner-third error per fold, degrees]}}."""
+    from PIL import Image
+
+    from g2r_jax.downstream import content_rows, experiment, real_sets, training_sets
+    from g2r_jax.downstream.estimators import train_estimator
+    from g2r_jax.measure import angular_error_degrees, folds_of
+
+    linear = training_sets.linear_images([np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))])
+    views = training_sets.cg_views(linear, n, seed)
+    adapted = {name: variant_views(name, views) for name in variants}
+    errors, start = {}, time.perf_counter()
+    for camera in cameras:
+        real = real_sets.load_nus(NUS / f"{camera}.npz")
+        profile = camera_profile(camera)
+        groups = getattr(real, "groups", None)
+        for fold, test in enumerate(folds_of(len(real.images), 3, 0, groups=groups)):
+            train = np.setdiff1d(np.arange(len(real.images)), test)
+            inner, validate = content_rows.inner_split(train, groups, seed, fold)
+            fitted = experiment.fitted_illuminants(profile, real.illuminants[inner], "auto", seed)
+            for name in variants:
+                images, labels = training_sets.g2r_set(adapted[name], fitted, 7_000 + 1000 * seed + fold)
+                for estimator in estimators:
+                    predict = train_estimator(estimator, images, labels, seed=1000 * seed + fold)
+                    error = float(np.mean(angular_error_degrees(predict(real.images[validate]),
+                                                                real.illuminants[validate])))
+                    errors.setdefault(f"{estimator}/{name}", {}).setdefault(camera, []).append(error)
+            print(f"  {camera} fold {fold + 1}/3 ({time.perf_counter() - start:.0f} s)", file=sys.stderr, flush=True)
+    return errors
+
+
+def table(errors: dict, cameras, variants, estimators) -> str:
+    out = ["| estimator | variant | " + " | ".join(cameras) + " | mean |", "|---|---|" + "---|" * (len(cameras) + 1)]
+    for estimator in estimators:
+        for name in variants:
+            per_camera = [float(np.mean(errors[f"{estimator}/{name}"][c])) for c in cameras]
+            out.append(f"| {estimator} | {name} | " + " | ".join(f"{e:.2f}" for e in per_camera)
+                       + f" | {np.mean(per_camera):.2f} |")
+    return "\n".join(out)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--cameras", default="Canon600D,NikonD40,SonyA57")
+    parser.add_argument("--variants", default=VARIANTS)
+    parser.add_argument("--estimators", default="moments,cnn")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--n", type=int, default=200)
+    args = parser.parse_args(argv)
+    if not NUS.is_dir() or not CARLA.is_dir():
+        print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
+        return 2
+    cameras, variants, estimators = (args.cameras.split(","), args.variants.split(","), args.estimators.split(","))
+    errors = run(cameras, variants, estimators, args.seed, args.n)
+    print("mean inner-third error (degrees, mean of the 3 folds; the test folds are not read)\n")
+    print(table(errors, cameras, variants, estimators))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
