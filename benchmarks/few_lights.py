@@ -12,12 +12,14 @@ content only) is UPI's random cameras on the same views, as `downstream.experime
 NUS cameras out (only the Gehler-Shi lights: other scenes, since the NUS cameras shot many of the
 same scenes, so `pooled` may know the test camera's scenes' lights from its siblings). Each count below all is
 drawn `--draws` times per fold (a different random subset of the fold's training lights each).
-Content: `cg` (the CARLA frames, the paper's setting) or `real` (the training folds' real images
-relit to the model's lights, `experiment`'s real_profile_light: the lights' own cost).
+Content: `cg` (the CARLA frames, the paper's setting), `cg-cast` (the same through the `cast`
+content model, each frame's own cast removed: issue 32, for UPI too) or `real` (the training
+folds' real images relit to the model's lights, `experiment`'s real_profile_light: the lights'
+own cost).
 Identical models (e.g. `auto` below 10 lights and `prior`) are trained once.
 
     python benchmarks/few_lights.py [--cameras Canon600D,NikonD40] [--lights 0,1,5,all]
-        [--models prior,locus,kernel,pooled] [--content cg,real] [--estimators cnn,moments]
+        [--models prior,locus,kernel,pooled] [--content cg,cg-cast,real] [--estimators cnn,moments]
         [--seeds 1] [--n 300] [--draws 1] --out out/few_lights.jsonl
     python benchmarks/few_lights.py --summary --out out/few_lights.jsonl
     python benchmarks/few_lights.py --energy
@@ -118,6 +120,11 @@ def run_camera(camera, args, out, say):
     folds = folds_of(len(real.images), 3, 0, groups=real.groups)
     for seed in range(args.seeds):
         views = sets.cg_views(linear, args.n, seed)
+        cg_views = {"cg": views}
+        if "cg-cast" in args.content:    # the CARLA views through the 'cast' content model (c = 0)
+            from g2r_jax import content as content_model
+
+            cg_views["cg-cast"] = np.asarray(content_model.apply(content_model.fit_content_model(family="cast"), views))
         for fold, test in enumerate(folds):
             train = np.setdiff1d(np.arange(len(real.images)), test)
             trained, relit = {}, []
@@ -135,12 +142,12 @@ def run_camera(camera, args, out, say):
                                 continue
                             start = time.perf_counter()
                             salt = 1000 * seed + 10 * fold + 4
-                            if name == "upi" and content == "cg":    # as `downstream.experiment`'s upi row
-                                images, labels = sets.upi_set(sets.linear_to_srgb_views(views), seed + 1)
+                            if name == "upi" and content in cg_views:    # as `downstream.experiment`'s upi row
+                                images, labels = sets.upi_set(sets.linear_to_srgb_views(cg_views[content]), seed + 1)
                             elif name == "upi":
                                 continue
-                            elif content == "cg":
-                                images, labels = sets.g2r_set(views, fitted, salt)
+                            elif content in cg_views:
+                                images, labels = sets.g2r_set(cg_views[content], fitted, salt)
                             else:
                                 if not relit:   # the training folds' real images, once per fold
                                     views_real = sets.real_to_linear_srgb(real.images[train], real.illuminants[train],
