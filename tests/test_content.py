@@ -77,13 +77,38 @@ def test_cast_kept_scales_the_tint_geometrically_and_one_changes_nothing():
     assert np.all(np.isfinite(out)) and np.all(out[..., 2] == 0.0)
 
 
-def test_the_cast_family_is_not_fitted_but_fixed_by_the_measurement():
-    model = content.fit_content_model(None, None, family="cast")
-    assert model.family == "cast" and float(model.cast_scale) == content.CAST_KEPT
-    assert float(model.chroma_scale) == 1.0 and content.as_matrix(model) is None
-    assert "cast" in content.describe(model)
+def test_cast_target_takes_each_images_mean_to_that_colour():
+    images = _colourful(3, seed=6) * np.array([0.7, 1.0, 1.4], np.float32)     # blue, like the CARLA frames
+    warm = content.content_model(cast_scale=0.0, cast_target=(1.1, 1.0, 0.8), family="cast")
+    target = np.asarray(warm.cast_target)
+    assert float(target @ LUMINANCE) == pytest.approx(1.0, rel=1e-6)       # scaled to luminance 1
+    means = np.asarray(content.apply(warm, images)).mean(axis=(1, 2))
+    luminance = images.mean(axis=(1, 2)) @ LUMINANCE
+    np.testing.assert_allclose(means, luminance[:, None] * target[None], rtol=3e-5)
+
+
+def test_the_cast_fit_takes_the_real_images_median_cast_through_the_camera_matrix():
+    rng = np.random.default_rng(7)
+    real = _colourful(20, seed=8) * np.exp(rng.normal([0.06, 0.0, -0.1], 0.02, (20, 1, 1, 3))).astype(np.float32)
+    stats = content.statistics(real, source="warm scenes")
+    to_camera = np.array([[1.1, -0.05, -0.05], [0.02, 0.96, 0.02], [-0.03, -0.07, 1.1]])
+    to_camera /= to_camera.sum(1, keepdims=True)                         # white to white
+    model = content.fit_content_model(stats, family="cast", to_camera=to_camera)
+    assert model.family == "cast" and float(model.cast_scale) == content.CAST_KEPT and "warm scenes" in model.source
+    in_camera = to_camera @ np.asarray(model.cast_target, np.float64)
+    expected = np.exp([stats.median("cast_red"), 0.0, stats.median("cast_blue")])
+    np.testing.assert_allclose(in_camera / in_camera[1], expected, rtol=1e-5)
+    assert stats.median("cast_red") > 0.03 and stats.median("cast_blue") < -0.05   # the cast it was made with
+    prior_model = content.fit_content_model(None, family="cast")
+    assert "NUS" in prior_model.source
+    np.testing.assert_allclose(np.log(np.asarray(prior_model.cast_target)[[0, 2]] / float(prior_model.cast_target[1])),
+                               [prior.REAL_SCENES["medians"]["cast_red"], prior.REAL_SCENES["medians"]["cast_blue"]],
+                               rtol=1e-5)
+    assert content.as_matrix(model) is None and "cast" in content.describe(model)
     with pytest.raises(ValueError, match="cast_scale"):
         content.content_model(cast_scale=-0.1, family="cast")
+    with pytest.raises(ValueError, match="cast_target"):
+        content.content_model(cast_target=(1.0, 0.0, 1.0), family="cast")
 
 
 def test_apply_jits_and_vmaps_with_the_model_as_an_argument():
@@ -163,14 +188,18 @@ def test_json_round_trip_and_clear_errors():
     assert float(back.chroma_scale) == pytest.approx(0.4) and float(back.tone_power) == pytest.approx(1.2)
     assert back.family == "chroma_tone" and back.apply_by_default is True and back.source == "test"
     assert dict(back.target) == {"chroma_spread": pytest.approx(0.2)}
-    cast = content.content_from_dict(content.content_to_dict(content.content_model(cast_scale=0.0, family="cast")))
+    cast = content.content_from_dict(content.content_to_dict(
+        content.content_model(cast_scale=0.0, cast_target=(1.05, 1.0, 0.9), family="cast")))
     assert cast.family == "cast" and float(cast.cast_scale) == 0.0
+    assert np.asarray(cast.cast_target)[2] < np.asarray(cast.cast_target)[0]
     older = {k: v for k, v in document.items() if k != "cast_scale"}   # blocks written before the family
     assert float(content.content_from_dict(older).cast_scale) == 1.0
     for bad, where in (({**document, "family": "x"}, "content.family"),
                        ({**document, "chroma_scale": "half"}, "content.chroma_scale"),
                        ({**document, "chroma_scale": 2.0}, "content"),
                        ({**document, "cast_scale": 1.5}, "content"),
+                       ({**document, "cast_target": [1, 1]}, "content.cast_target"),
+                       ({**document, "cast_target": [1, -1, 1]}, "content"),
                        ({**document, "apply_by_default": "yes"}, "content.apply_by_default"),
                        ({**document, "extra": 1}, "unknown keys")):
         with pytest.raises(ValueError, match=where):
@@ -195,6 +224,6 @@ def test_real_images_round_trip_through_the_camera_matrices():
 def test_prior_numbers_are_those_of_the_data(shared_data):
     real = prior.measure_real_scenes(shared_data)
     cg = prior.measure_reference_cg(shared_data)
-    for key in ("chroma_spread", "brightness"):
+    for key in ("chroma_spread", "brightness", "cast_red", "cast_blue"):
         assert prior.REAL_SCENES["medians"][key] == pytest.approx(real[key], rel=1e-3)
         assert prior.REFERENCE_CG["medians"][key] == pytest.approx(cg[key], rel=1e-3)

@@ -1,6 +1,6 @@
 """What the scenes of the measured and the simulated files hold (issue 32's wiring into the
 audit): the content statistics of `g2r_jax.content.scene_statistics` (chroma spread, brightness,
-dark and clipped shares, contrast), per file on a 64 x 64 thumbnail in the camera's
+dark and clipped shares, contrast, grey-world cast), per file on a 64 x 64 thumbnail in the camera's
 white-balanced RGB (the mosaic's sites averaged per colour, divided by the file's AsShotNeutral,
 `content.mosaic_thumbnail`), their medians side by side.
 
@@ -19,7 +19,8 @@ from g2r_jax.profile.fitting import as_shot_neutral
 
 WORDS = {"chroma_spread": "chroma spread (sd of log-chroma)", "brightness": "brightness (mean luminance / peak)",
          "dark_share": "dark share (luminance < 2 % of peak)", "clipped_share": "clipped share",
-         "contrast": "contrast (log2 of the 95th / 5th percentile)"}
+         "contrast": "contrast (log2 of the 95th / 5th percentile)",
+         "cast_red": "grey-world cast, log R/G of the mean", "cast_blue": "grey-world cast, log B/G of the mean"}
 
 
 def thumbnail(mosaic, info) -> np.ndarray | None:

@@ -8,9 +8,11 @@ to that of the real images, in the camera's white-balanced RGB:
   sample (both statistics are monotone in their parameter); with medians only, by the
   small-chroma approximation s = real spread / CG spread (log(Y + s d) - log Y ~ s d / Y) and
   p = log(real brightness) / log(CG brightness) (a power p takes a brightness b to about b^p).
-The 'cast' family has no statistic to fit: the measurement fixed it (`model.CAST_KEPT`, every CG
-frame's own cast removed; the real files' casts are about as large as the CG frames', but the CG
-cast is not the drawn light, see the validation page's finding 3).
+The 'cast' family takes each CG image's grey-world cast all the way (`model.CAST_KEPT`) to the
+median cast of the real images (`cast_red`, `cast_blue`: the real scenes balanced by their
+as-shot neutral are warm on the median, the CARLA frames blue), a colour in the camera's
+white-balanced RGB carried to linear sRGB by the inverse of `to_camera` (finding 3 of
+docs/pages/validation/content_model.md).
 Without real images the real medians come from the prior of real scenes
 (`prior.REAL_SCENES`); without CG statistics, from the reference CG set (`prior.REFERENCE_CG`).
 """
@@ -31,7 +33,7 @@ _apply = jax.jit(apply)
 
 def _medians(stats, fallback: dict, what: str) -> tuple[dict, str]:
     if stats is None:
-        return dict(fallback["medians"]), fallback["source"]
+        return {k: fallback["medians"][k] for k in _MEDIANS}, fallback["source"]
     if isinstance(stats, ContentStatistics):
         if len(stats) == 0:
             raise ValueError(f"{stats.source or what}: no images to fit the content model to")
@@ -100,8 +102,7 @@ def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str =
     if family == "identity":
         return identity()
     if family == "cast":
-        return content_model(cast_scale=CAST_KEPT, family="cast",
-                             source="fixed by measurement: each CG frame's grey-world cast removed")
+        return _cast_model(real_statistics, to_camera)
     real, real_source = _medians(real_statistics, _prior.REAL_SCENES, "real images")
     if cg_sample is not None:
         scale, power = _parameters_from_sample(real, cg_sample, to_camera, family)
@@ -113,3 +114,30 @@ def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str =
                 raise ValueError(f"cannot fit the content model: median {name} is {value!r}")
         scale, power = _parameters_from_medians(real, cg, family)
     return content_model(scale, power, family=family, source=f"{real_source} vs {cg_source}", target=real)
+
+
+def _cast_model(real_statistics, to_camera) -> ContentModel:
+    """'cast': the target colour is the real images' median grey-world cast, exp(cast_red), 1,
+    exp(cast_blue) in the camera's white-balanced RGB, taken to linear sRGB by to_camera^-1."""
+    names = ("cast_red", "cast_blue")
+    if real_statistics is None:
+        real, source = {k: _prior.REAL_SCENES["medians"][k] for k in names}, _prior.REAL_SCENES["source"]
+    elif isinstance(real_statistics, ContentStatistics):
+        if len(real_statistics) == 0:
+            raise ValueError(f"{real_statistics.source or 'real images'}: no images to fit the content model to")
+        real, source = {k: real_statistics.median(k) for k in names}, real_statistics.source or "real images"
+    else:
+        missing = [k for k in names if k not in real_statistics]
+        if missing:
+            raise ValueError(f"real images' medians lack {', '.join(missing)}")
+        real, source = {k: float(real_statistics[k]) for k in names}, "real images"
+    if not all(np.isfinite(v) for v in real.values()):
+        raise ValueError(f"cannot fit the content model: a median cast of {source} is not finite")
+    in_camera = np.exp([real["cast_red"], 0.0, real["cast_blue"]])
+    to_camera = np.eye(3) if to_camera is None else np.asarray(to_camera, np.float64)
+    target = np.linalg.solve(to_camera, in_camera)
+    if not np.all(target > 0):
+        raise ValueError(f"cannot fit the content model: the real images' median cast {in_camera.round(3).tolist()} "
+                         "is outside the sRGB gamut at this light")
+    return content_model(cast_scale=CAST_KEPT, cast_target=target, family="cast",
+                         source=f"{source}: the CG frames' grey-world cast to the real scenes' median", target=real)

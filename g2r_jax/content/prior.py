@@ -18,9 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-REAL_SCENES = {"medians": {"chroma_spread": 0.22400, "brightness": 0.11634},
+REAL_SCENES = {"medians": {"chroma_spread": 0.22400, "brightness": 0.11634, "cast_red": 0.03337,
+                           "cast_blue": -0.06979},
                "source": "prior: NUS 8-camera set, nine cameras (median of per-camera medians)"}
-REFERENCE_CG = {"medians": {"chroma_spread": 0.14527, "brightness": 0.31836},
+REFERENCE_CG = {"medians": {"chroma_spread": 0.14527, "brightness": 0.31836, "cast_red": -0.08946,
+                            "cast_blue": 0.13251},
                 "source": "reference CG: 343 CARLA frames"}
 NUS_CAMERAS = ("Canon1DsMkIII", "Canon600D", "FujifilmXM1", "NikonD40", "NikonD5200", "OlympusEPL6",
                "PanasonicGX1", "SamsungNX2000", "SonyA57")

@@ -19,7 +19,12 @@ Per image, with `peak` its largest channel value and luminance the Y row of line
 - `dark_share`: share of pixels with luminance below 2 % of the peak;
 - `clipped_share`: share of pixels with a channel at >= 98 % of the peak, or zeroed (the real
   thumbnails zero their saturated pixels);
-- `contrast`: log2 of the 95th over the 5th percentile of lit luminance.
+- `contrast`: log2 of the 95th over the 5th percentile of lit luminance;
+- `cast_red`, `cast_blue`: the image's grey-world cast, log R/G and log B/G of its mean colour
+  over the pixels not clipped (Buchsbaum's grey world, J. Franklin Inst. 1980: 0 for an image
+  whose mean is neutral). Real scenes balanced by their light are warm on the median (NUS: about
+  +0.05 and -0.08); the CARLA frames are blue (about -0.09 and +0.15) with little spread between
+  frames (docs/pages/validation/content_model.md, finding 3).
 """
 
 from __future__ import annotations
@@ -31,7 +36,7 @@ import numpy as np
 
 from g2r_jax.colour.conversions import MATRIX_SRGB_TO_XYZ
 
-NAMES = ("chroma_spread", "brightness", "dark_share", "clipped_share", "contrast")
+NAMES = ("chroma_spread", "brightness", "dark_share", "clipped_share", "contrast", "cast_red", "cast_blue")
 SIZE = 64
 LIT = 0.05
 DARK = 0.02
@@ -105,12 +110,19 @@ def statistics(images, *, source: str = "") -> ContentStatistics:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)   # an image without lit pixels gives NaN
         low, high = _masked_percentile(luminance, lit, 5), _masked_percentile(luminance, lit, 95)
+    kept = ~clipped
+    mean_colour = np.einsum("np,npc->nc", kept, pixels) / np.maximum(kept.sum(1), 1)[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cast = np.log(mean_colour[:, [0, 2]] / mean_colour[:, 1:2])
+    cast = np.where(np.isfinite(cast) & (kept.sum(1) > 0)[:, None], cast, np.nan)
     values = {
         "chroma_spread": np.where(enough, np.sqrt(variance.mean(1)), np.nan),
         "brightness": luminance.mean(1),
         "dark_share": (luminance < DARK).mean(1),
         "clipped_share": clipped.mean(1),
         "contrast": np.where(enough, np.log2(np.maximum(high, _EPS) / np.maximum(low, _EPS)), np.nan),
+        "cast_red": cast[:, 0],
+        "cast_blue": cast[:, 1],
     }
     return ContentStatistics(values=values, source=source)
 

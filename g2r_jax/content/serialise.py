@@ -1,7 +1,7 @@
 """A profile's optional `content` block (JSON) <-> `ContentModel`.
 
     "content": {"family": "cast", "chroma_scale": 1.0, "tone_power": 1.0, "cast_scale": 0.0,
-                "apply_by_default": false,
+                "cast_target": [1.05, 0.99, 0.88], "apply_by_default": true,
                 "target": {"chroma_spread": 0.21, "brightness": 0.1}, "source": "..."}
 
 `apply_by_default` says whether conversion applies the model when not told (see the validation
@@ -15,13 +15,14 @@ from typing import Callable
 
 from g2r_jax.content.model import FAMILIES, ContentModel, content_model
 
-_KEYS = {"family", "chroma_scale", "tone_power", "cast_scale", "apply_by_default", "target", "source"}
+_KEYS = {"family", "chroma_scale", "tone_power", "cast_scale", "cast_target", "apply_by_default", "target", "source"}
 
 
 def content_to_dict(model: ContentModel) -> dict:
     """The `content` block of a profile document."""
     return {"family": model.family, "chroma_scale": float(model.chroma_scale), "tone_power": float(model.tone_power),
-            "cast_scale": float(model.cast_scale), "apply_by_default": bool(model.apply_by_default), "target": {k: float(v) for k, v in model.target},
+            "cast_scale": float(model.cast_scale), "cast_target": [float(v) for v in model.cast_target],
+            "apply_by_default": bool(model.apply_by_default), "target": {k: float(v) for k, v in model.target},
             "source": model.source}
 
 
@@ -49,6 +50,10 @@ def content_from_dict(document, fail: Callable[[str, str], None] = _raise) -> Co
         fail("content.family", f"unknown family {family!r}; expected one of {', '.join(FAMILIES)}")
     scale, power = _number(document, "chroma_scale", fail), _number(document, "tone_power", fail)
     cast = _number(document, "cast_scale", fail)   # absent before the 'cast' family: 1, unchanged
+    cast_target = document.get("cast_target", [1.0, 1.0, 1.0])
+    if not (isinstance(cast_target, list) and len(cast_target) == 3
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in cast_target)):
+        fail("content.cast_target", f"expected three numbers (a linear sRGB colour), got {cast_target!r}")
     target = document.get("target", {})
     if not isinstance(target, dict) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                                                for v in target.values()):
@@ -57,7 +62,7 @@ def content_from_dict(document, fail: Callable[[str, str], None] = _raise) -> Co
     if not isinstance(by_default, bool):
         fail("content.apply_by_default", f"expected true or false, got {by_default!r}")
     try:
-        model = content_model(scale, power, cast_scale=cast, family=family, source=str(document.get("source", "")),
+        model = content_model(scale, power, cast_scale=cast, cast_target=cast_target, family=family, source=str(document.get("source", "")),
                               target={str(k): float(v) for k, v in target.items()}, apply_by_default=by_default)
     except ValueError as error:
         fail("content", str(error))
