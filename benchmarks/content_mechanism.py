@@ -5,12 +5,14 @@ Variants of the CARLA views (linear sRGB), each made RAW by g2r_jax under lights
 inner two thirds of a NUS camera's training folds, an estimator trained on it and tested on the
 inner third (`g2r_jax.downstream.content_rows.inner_split`: the test fold is not read at all):
 - `identity`; `chroma@S` (x' = Y + S (x - Y): the pixels' chroma *and* the frame's mean cast scaled
-  by S); `cast@C` (only the frame's grey-world cast, by a gain per channel: family 'cast');
+  by S); `cast@C` (only the frame's grey-world cast, by a gain per channel, toward neutral: family
+  'cast'); `cast` (the family as fitted without labels to the inner two thirds' thumbnails: each
+  frame's cast taken to their median cast);
 - `chroma@S+cast`: chroma scaled by S, then each frame's mean colour put back (the pixels less
   colourful, the cast unchanged): the control that separates the two.
 
     python benchmarks/content_mechanism.py [--cameras Canon600D,NikonD40,SonyA57] [--seed 0] [--n 200]
-        [--estimators moments,cnn] [--variants identity,chroma@0.35,cast@0.35,cast@0,chroma@0.35+cast]
+        [--estimators moments,cnn] [--variants identity,chroma@0.35,cast@0.35,cast@0,chroma@0.35+cast,cast]
 
 Data: ../shared/data/estimation/nus/<camera>.npz and ../shared/data/cg/carla/*.png.
 """
@@ -62,7 +64,7 @@ def run(cameras, variants, estimators, seed: int, n: int) -> dict:
 
     linear = training_sets.linear_images([np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))])
     views = training_sets.cg_views(linear, n, seed)
-    adapted = {name: variant_views(name, views) for name in variants}
+    adapted = {name: variant_views(name, views) for name in variants if name != "cast"}
     errors, start = {}, time.perf_counter()
     for camera in cameras:
         real = real_sets.load_nus(NUS / f"{camera}.npz")
@@ -72,6 +74,9 @@ def run(cameras, variants, estimators, seed: int, n: int) -> dict:
             train = np.setdiff1d(np.arange(len(real.images)), test)
             inner, validate = content_rows.inner_split(train, groups, seed, fold)
             fitted = experiment.fitted_illuminants(profile, real.illuminants[inner], "auto", seed)
+            if "cast" in variants:    # fitted to the inner two thirds, per fold
+                model = content_rows.candidate_model("cast", real.images[inner], real.illuminants[inner], views, profile)
+                adapted["cast"] = content_rows.adapted_views(model, views)
             for name in variants:
                 images, labels = training_sets.g2r_set(adapted[name], fitted, 7_000 + 1000 * seed + fold)
                 for estimator in estimators:

@@ -114,22 +114,43 @@ def test_fit_from_files_goes_on_past_a_bad_file():
 
 
 @pytest.mark.slow
-def test_fit_profile_stores_the_model_off_and_convert_follows_the_flags(tmp_path):
+def test_fit_profile_stores_the_cast_model_on_and_convert_follows_the_flags(tmp_path, capsys):
     from g2r_jax.cli import convert, fit_profile
 
     dngs = tmp_path / "dngs"
     assert convert.main(["--example", "--profile", "gopro_hero6", "-o", str(dngs), "--quiet"]) == 0
     assert fit_profile.main([str(dngs), "-o", str(tmp_path / "cam.json")]) == 0
+    assert "content model: cast" in capsys.readouterr().out
     block = json.loads((tmp_path / "cam.json").read_text())["content"]
-    assert block["apply_by_default"] is False and "1 DNG file(s)" in block["source"]
+    assert block["family"] == "cast" and block["apply_by_default"] is True and "1 DNG file(s)" in block["source"]
+    assert block["cast_scale"] == 0.0 and len(block["cast_target"]) == 3
     assert fit_profile.main([str(dngs), "-o", str(tmp_path / "plain.json"), "--no-content-model"]) == 0
     assert "content" not in json.loads((tmp_path / "plain.json").read_text())
     document = json.loads((tmp_path / "cam.json").read_text())
-    document["content"]["chroma_scale"] = 0.3
-    (tmp_path / "strong.json").write_text(json.dumps(document))
-    outputs = {}
-    for name, flags in {"default": [], "off": ["--no-content-model"], "on": ["--content-model"]}.items():
-        assert convert.main(["--example", "--profile", str(tmp_path / "strong.json"), "-o", str(tmp_path / name),
-                             "--quiet"] + flags) == 0
-        outputs[name] = (tmp_path / name / "colour_checker_scene.dng").read_bytes()
-    assert outputs["default"] == outputs["off"] != outputs["on"]
+    document["content"]["apply_by_default"] = False
+    (tmp_path / "off.json").write_text(json.dumps(document))
+
+    def converted(profile, flags, name):
+        assert convert.main(["--example", "--profile", str(profile), "-o", str(tmp_path / name), "--quiet"] + flags) == 0
+        return (tmp_path / name / "colour_checker_scene.dng").read_bytes()
+
+    on = {flags: converted(tmp_path / "cam.json", list(flags), f"on{i}")
+          for i, flags in enumerate(((), ("--no-content-model",), ("--content-model",)))}
+    assert on[()] == on[("--content-model",)] != on[("--no-content-model",)]
+    off = {flags: converted(tmp_path / "off.json", list(flags), f"off{i}")
+           for i, flags in enumerate(((), ("--no-content-model",), ("--content-model",)))}
+    assert off[()] == off[("--no-content-model",)] != off[("--content-model",)]
+    assert off[("--no-content-model",)] == on[("--no-content-model",)]
+
+
+def test_convert_content_model_on_a_shipped_profile_uses_the_prior_and_says_so(tmp_path, capsys):
+    from g2r_jax.cli import convert
+
+    assert convert.main(["--example", "--profile", "Canon600D", "-o", str(tmp_path / "plain"), "--quiet"]) == 0
+    assert convert.main(["--example", "--profile", "Canon600D", "-o", str(tmp_path / "cast"), "--content-model"]) == 0
+    err = capsys.readouterr().err
+    assert "no content model: using the prior of real scenes'" in err and "content model: cast" in err
+    name = "colour_checker_scene.dng"
+    assert (tmp_path / "plain" / name).read_bytes() != (tmp_path / "cast" / name).read_bytes()
+    model = content.prior_cast_model(g2r_jax.load_profile("Canon600D").colour)
+    assert model.family == "cast" and "NUS" in model.source

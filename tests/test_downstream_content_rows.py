@@ -1,5 +1,5 @@
-"""The content model's rows of the downstream experiment (issue 32): the model is chosen on the
-training folds only, a profile's own model is used as given, `g2r-downstream --content-rows` reports
+"""The content model's rows of the downstream experiment (issue 32): the model is fitted to the
+training folds only (and the benchmark's selection sees only them), a profile's own model is used as given, `g2r-downstream --content-rows` reports
 both rows, and an unknown row is refused by name."""
 
 from __future__ import annotations
@@ -47,60 +47,80 @@ def _fake_sets(monkeypatch, calls):
     monkeypatch.setattr(training_sets, "upi_set", upi_set)
 
 
-def test_the_selection_never_sees_the_test_fold(monkeypatch):
-    """Every real image the selection reads (the thumbnails its candidates are fitted to, the
-    lights fitted, the images its estimators are tested on) is in the training folds."""
+def test_the_rows_model_is_fitted_to_the_training_folds_only(monkeypatch):
+    """The rows' 'cast' model reads the training folds' files only, once per (fold, seed), and no
+    estimator chooses it."""
+    real, profile = _real_set()
+    index = {image.tobytes(): i for i, image in enumerate(real.images)}
+    fitted_to = []
+    original_candidate = content_rows.candidate_model
+
+    def candidate(name, images, lights, views, prof):
+        fitted_to.append((name, {index[image.tobytes()] for image in np.asarray(images)}))
+        return original_candidate(name, images, lights, views, prof)
+
+    def no_selection(*args, **kwargs):
+        raise AssertionError("the rows' model is fitted, not chosen by an estimator")
+
+    monkeypatch.setattr(content_rows, "candidate_model", candidate)
+    monkeypatch.setattr(content_rows, "select_candidate", no_selection)
+    monkeypatch.setattr(estimators, "train_estimator",
+                        lambda name, x, y, seed=0: (lambda test: np.tile(y.mean(0), (len(test), 1))))
+    _fake_sets(monkeypatch, [])
+    result = experiment.illuminant_experiment(real, profile, _cg(), rows=("content", "upi_content"),
+                                              estimators=("moments",), seeds=(0, 1), n=50, folds=2,
+                                              illuminant_model="prior")
+    tests = folds_of(len(real.images), 2, 0, groups=real.groups)
+    assert len(fitted_to) == 4                                   # one per (fold, seed), shared by both rows
+    for k, (name, seen) in enumerate(fitted_to):
+        assert name == content_rows.FITTED
+        assert seen == set(range(len(real.images))) - set(tests[k % 2].tolist())
+    assert sum("content rows, seed" in note and "cast" in note for note in result.notes) == 4
+    assert {row for row, _ in result.errors} == {"content", "upi_content"}
+
+
+def test_the_benchmarks_selection_never_sees_the_test_fold(monkeypatch):
+    """`fold_content_model` (benchmarks/content_model.py --families): every real image it reads
+    (the thumbnails its candidates are fitted to, the lights fitted, the images its estimator is
+    tested on) is in the training folds, and the inner third it validates on is held out."""
     real, profile = _real_set()
     index = {image.tobytes(): i for i, image in enumerate(real.images)}
     light_index = {light.tobytes(): i for i, light in enumerate(real.illuminants)}
-    selections = []                       # per call: train, validated, fitted-to images, lights
-    current = []
+    seen = {"validated": set(), "fitted": set(), "lights": set()}
 
     def indices(images):
         return {index[image.tobytes()] for image in np.asarray(images)}
 
     def train_estimator(name, images, lights, seed=0):
         def predict(test):
-            if current:
-                current[-1]["validated"] |= indices(test)
+            seen["validated"] |= indices(test)
             return np.tile([1.0, 1.0, 1.0], (len(test), 1)) / np.sqrt(3)
         return predict
 
-    original_select, original_candidate = content_rows.select_candidate, content_rows.candidate_model
-
-    def select(candidates, real_set, train, views, prof, fit_lights, **options):
-        def fit(lights):
-            current[-1]["lights"] |= {light_index[np.asarray(light, np.float64).tobytes()] for light in lights}
-            return fit_lights(lights)
-
-        current.append({"train": set(train.tolist()), "validated": set(), "fitted": set(), "lights": set()})
-        try:
-            return original_select(candidates, real_set, train, views, prof, fit, **options)
-        finally:
-            selections.append(current.pop())
+    original_candidate = content_rows.candidate_model
+    selecting = [True]
 
     def candidate(name, images, lights, views, prof):
-        if current:
-            current[-1]["fitted"] |= indices(images)
+        if selecting[0]:
+            seen["fitted"] |= indices(images)
         return original_candidate(name, images, lights, views, prof)
 
+    def fit_lights(lights):
+        seen["lights"] |= {light_index[np.asarray(light, np.float64).tobytes()] for light in lights}
+        return profile
+
     monkeypatch.setattr(estimators, "train_estimator", train_estimator)
-    monkeypatch.setattr(content_rows, "select_candidate", select)
     monkeypatch.setattr(content_rows, "candidate_model", candidate)
     _fake_sets(monkeypatch, [])
-    result = experiment.illuminant_experiment(real, profile, _cg(), rows=("content", "upi_content"),
-                                              estimators=("moments",), seeds=(0, 1), n=50, folds=2,
-                                              illuminant_model="prior")
-    tests = folds_of(len(real.images), 2, 0, groups=real.groups)
-    assert len(selections) == 4                                  # one per (fold, seed), shared by both rows
-    for k, seen in enumerate(selections):
-        test = set(tests[k % 2].tolist())
-        assert seen["train"] == set(range(len(real.images))) - test
-        assert seen["validated"] and seen["fitted"] and seen["lights"]
-        assert not (seen["validated"] | seen["fitted"] | seen["lights"]) & test
-        assert not seen["validated"] & (seen["fitted"] | seen["lights"])   # the inner third is held out
-    assert sum("kept chroma@" in note or "kept identity" in note for note in result.notes) == 4
-    assert {row for row, _ in result.errors} == {"content", "upi_content"}
+    test = folds_of(len(real.images), 2, 0, groups=real.groups)[0]
+    train = np.setdiff1d(np.arange(len(real.images)), test)
+    views = training_sets.cg_views(_cg(), 30, 0)
+    name, errors = content_rows.select_candidate(content_rows.CANDIDATES + ("cast",), real, train, views, profile,
+                                                 fit_lights, seed=0, fold=0)
+    assert name in errors and set(errors) == set(content_rows.CANDIDATES + ("cast",))
+    assert seen["validated"] and seen["fitted"] and seen["lights"]
+    assert not (seen["validated"] | seen["fitted"] | seen["lights"]) & set(test.tolist())
+    assert not seen["validated"] & (seen["fitted"] | seen["lights"])   # the inner third is held out
 
 
 def test_inner_split_keeps_files_with_the_same_pixels_together():
@@ -202,7 +222,7 @@ def test_g2r_downstream_reports_the_content_rows(camera_folders, tmp_path, capsy
     assert sum("content rows, seed 0, fold" in note for note in document["notes"]) == 2
     page = (report / "report.md").read_text()
     assert experiment.ROWS["content"] in page and experiment.ROWS["upi_content"] in page
-    assert "content rows, seed 0, fold 1: kept" in page
+    assert "content rows, seed 0, fold 1: cast" in page
 
 
 @pytest.mark.slow
@@ -222,8 +242,8 @@ def test_the_library_rows_give_the_benchmarks_figures(shared_data, monkeypatch):
     spec = importlib.util.spec_from_file_location("benchmark_content_model", path)
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
-    candidates = tuple(c for c in content_rows.CANDIDATES if c != "identity")
-    ran = bench.run_camera(("Canon600D", ("moments",), (0,), 40, candidates, content_rows.SELECTION_ESTIMATOR))
+    ran = bench.run_camera(("Canon600D", ("moments",), (0,), 40, (), content_rows.SELECTION_ESTIMATOR,
+                            content_rows.FITTED))
     frames = [np.asarray(Image.open(p).convert("RGB")) for p in sorted((shared_data / "cg" / "carla").glob("*.png"))]
     real = real_sets.load_nus(shared_data / "estimation" / "nus" / "Canon600D.npz")
     result = experiment.illuminant_experiment(real, bench.camera_profile("Canon600D"), frames,
@@ -233,5 +253,5 @@ def test_the_library_rows_give_the_benchmarks_figures(shared_data, monkeypatch):
                                ("upi_content", "upi+content"), ("real", "real")):
         np.testing.assert_allclose(result.errors[(row, "moments")][0], ran["errors"][f"{benchmark_row}/moments"][0],
                                    rtol=1e-6, err_msg=row)
-    kept = [note.split("kept ")[1].split(" ")[0] for note in result.notes]
-    assert kept == [c["family"] for c in ran["chosen"]]
+    assert [c["family"] for c in ran["chosen"]] == [content_rows.FITTED] * 3
+    assert sum("content rows, seed 0, fold" in note for note in result.notes) == 3

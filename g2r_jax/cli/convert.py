@@ -56,7 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
     content = parser.add_mutually_exclusive_group()
     content.add_argument("--content-model", action="store_true",
                          help="apply the profile's content model (fitted by g2r-fit-profile) even where the "
-                              "profile leaves it off by default")
+                              "profile leaves it off; a profile without one (the shipped ones) gets the 'cast' "
+                              "model of the prior of real scenes")
     content.add_argument("--no-content-model", action="store_true",
                          help="do not apply the profile's content model")
     parser.add_argument("--illuminants", type=Path, metavar="CSV",
@@ -145,13 +146,14 @@ def read_illuminant_csv(path: Path):
 
 def _content_choice(profile, args, say):
     """The profile with its content model kept, forced on or dropped as the flags say."""
-    from g2r_jax.content import describe, with_default
+    from g2r_jax.content import describe, prior_cast_model, with_default
     from g2r_jax.profile.schema import replace
 
     model = profile.content
     if args.content_model and model is None:
-        raise ValueError(f"--content-model: profile {shown(profile.info.name)} has no content model "
-                         "(g2r-fit-profile fits one from the camera's DNGs)")
+        model = prior_cast_model(profile.colour)
+        say(f"profile {shown(profile.info.name)} has no content model: using the prior of real scenes' "
+            "(g2r-fit-profile fits one to the camera's DNGs)")
     if model is None:
         return profile
     if args.no_content_model:

@@ -141,3 +141,16 @@ def _cast_model(real_statistics, to_camera) -> ContentModel:
                          "is outside the sRGB gamut at this light")
     return content_model(cast_scale=CAST_KEPT, cast_target=target, family="cast",
                          source=f"{source}: the CG frames' grey-world cast to the real scenes' median", target=real)
+
+
+def prior_cast_model(colour_model) -> ContentModel:
+    """The 'cast' model for a camera without files at hand (a shipped profile): the prior of real
+    scenes' median cast (`prior.REAL_SCENES`), carried to linear sRGB through `colour_model`
+    (`DngColourModel`) at D65 (CIE 15:2004 xy 0.3127, 0.3290)."""
+    import jax.numpy as jnp
+
+    from g2r_jax.colour.dng_model import xy_to_camera_neutral
+    from g2r_jax.content.real_images import srgb_to_camera_matrices
+
+    neutral = np.asarray(xy_to_camera_neutral(jnp.asarray([0.3127, 0.3290]), colour_model), np.float64)
+    return fit_content_model(None, family="cast", to_camera=srgb_to_camera_matrices(neutral[None], colour_model)[0])

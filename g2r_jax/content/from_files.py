@@ -1,8 +1,9 @@
 """The content model of a folder of the camera's DNGs: each file's mosaic binned to a small
 camera-RGB image (greens of a CFA tile averaged, black subtracted, scaled by the range; 64 x 64
 area average, clipped blocks zeroed, as the NUS thumbnails of Cheng, Prasad and Brown, JOSA A
-2014), white-balanced by its as-shot neutral, its statistics, and the fit (`fitting`) against
-the reference CG set (no CG images at hand when a profile is fitted).
+2014), white-balanced by its as-shot neutral, its statistics, and the fit (`fitting`): the 'cast'
+family (what g2r-fit-profile stores) through the camera's colour model at the files' median
+neutral; the others against the reference CG set (no CG images at hand when a profile is fitted).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import numpy as np
 
 from g2r_jax.content.fitting import fit_content_model
 from g2r_jax.content.model import ContentModel
-from g2r_jax.content.real_images import white_balanced_camera_rgb
+from g2r_jax.content.real_images import srgb_to_camera_matrices, white_balanced_camera_rgb
 from g2r_jax.content.scene_statistics import CLIPPED, SIZE, _area_average, statistics
 
 
@@ -34,12 +35,14 @@ def mosaic_thumbnail(mosaic, cfa_pattern, black_level, white_level, *, size: int
 
 
 def content_model_from_files(files, read: Callable, *, on_error: Optional[Callable[[object, str], None]] = None,
-                             family: str = "chroma") -> tuple[Optional[ContentModel], int]:
+                             family: str = "cast", colour_model=None) -> tuple[Optional[ContentModel], int]:
     """The content model of a camera's files, fitted to their statistics (no labels).
 
     **Arguments:** `files`: anything `read` takes; `read(file) -> (mosaic, cfa_pattern,
     black_level, white_level, as_shot_neutral)`; `on_error(file, problem)` is told of each file
-    that cannot be used (the others go on); `family`: see `model.FAMILIES`.
+    that cannot be used (the others go on); `family`: see `model.FAMILIES`; `colour_model`: the
+    camera's (`DngColourModel`), which carries the 'cast' family's target from its white-balanced
+    RGB to linear sRGB (None: taken as the identity).
     **Returns:** (model or None when no file could be used, number of files used).
     """
     thumbnails, neutrals = [], []
@@ -58,6 +61,11 @@ def content_model_from_files(files, read: Callable, *, on_error: Optional[Callab
         return None, 0
     real = statistics(white_balanced_camera_rgb(np.stack(thumbnails), np.stack(neutrals)),
                       source=f"{len(thumbnails)} DNG file(s)")
-    if not np.isfinite(real.values["chroma_spread"]).any():
+    statistic = "cast_red" if family == "cast" else "chroma_spread"
+    if not np.isfinite(real.values[statistic]).any():
         return None, 0
-    return fit_content_model(real, None, family=family), len(thumbnails)
+    to_camera = None
+    if colour_model is not None:
+        neutral = np.median(np.stack(neutrals) / np.stack(neutrals)[:, 1:2], axis=0)
+        to_camera = srgb_to_camera_matrices(neutral[None], colour_model)[0]
+    return fit_content_model(real, None, family=family, to_camera=to_camera), len(thumbnails)

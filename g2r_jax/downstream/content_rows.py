@@ -2,17 +2,22 @@
 lights fitted to the training files and a content model on the CG views, and 'upi_content', UPI
 on the same adapted views (so that the lead over UPI is measured on equal content).
 
-The content model is the profile's own when it carries one (used as given, no selection). Else it
-is chosen per fold on the training folds only, never the test fold: the training folds are split
-again (two thirds / one third, seeded, files with the same pixels kept together:
-`g2r_jax.measure.folds_of`); each candidate makes g2r_jax RAW of the CG views under lights fitted
-to the inner two thirds, the selection estimator is trained on it and tested on the inner third,
-and the candidate with the lowest mean angular error is kept, then refitted to all the training
-folds. Protocol and measurement: docs/pages/validation/content_model.md ("Finding 2").
+The content model is the profile's own when it carries one (used as given). Else it is the one
+`g2r-fit-profile` fits (`FITTED`, the 'cast' family: each CG frame's grey-world cast taken to the
+median cast of the real files, balanced by their as-shot neutrals), fitted per fold to the
+training folds' files only, never the test fold; no label beyond the as-shot neutrals and no
+estimator is used to choose it. Protocol and measurement: docs/pages/validation/content_model.md.
+
+For the benchmark's comparisons of families (benchmarks/content_model.py --families), a candidate
+can also be chosen on the training folds (`fold_content_model`): they are split again (two thirds
+/ one third, seeded, files with the same pixels kept together: `g2r_jax.measure.folds_of`); each
+candidate makes g2r_jax RAW of the CG views under lights fitted to the inner two thirds, the
+selection estimator is trained on it and tested on the inner third, and the candidate with the
+lowest mean angular error is kept, then refitted to all the training folds.
 
 Candidates are named 'identity', a family fitted to the real thumbnails' statistics without labels
-('chroma', 'chroma_tone': `g2r_jax.content.fit_content_model`), or 'chroma@S', a chroma scale S
-given (its choice uses the training folds' labels, through the inner third's errors).
+('chroma', 'chroma_tone', 'cast': `g2r_jax.content.fit_content_model`), 'chroma@S' a chroma
+scale S given, or 'cast@C' a share C of each frame's cast kept, the rest taken to neutral.
 """
 
 from __future__ import annotations
@@ -26,6 +31,9 @@ import numpy as np
 # the others; the fitted 'chroma' is the identity on every camera and 'chroma_tone' made the
 # selection estimator worse (docs/pages/validation/content_model.md, findings 1 and 2).
 CANDIDATES = ("identity", "chroma@0.5", "chroma@0.35")
+# What the rows use when the profile has none: the model g2r-fit-profile fits (finding 3: it beat
+# the chroma candidates on the training folds' inner third, and trains the CNN within 1.3x of real data)
+FITTED = "cast"
 SELECTION_ESTIMATOR = "moments"   # the estimator the page's selection used (cheap to train)
 INNER_FOLDS = 3                   # the training folds split into thirds: one third validates
 _APPLY_CHUNK = 100                # views per compiled call of `content.apply`
@@ -135,7 +143,7 @@ def _note(sets, line: str) -> None:
 
 def fold_choice(sets, train: np.ndarray, fold: int, seed: int) -> FoldChoice:
     """The content model of (fold, seed), cached in `sets.cache` (both rows share it): the
-    profile's own as given, else `fold_content_model` on the training folds; each is said in
+    profile's own as given, else `FITTED` fitted to the training folds' files; each is said in
     `sets.notes`."""
     key = ("content_model", fold, seed)
     if key in sets.cache:
@@ -147,12 +155,13 @@ def fold_choice(sets, train: np.ndarray, fold: int, seed: int) -> FoldChoice:
                     f"{float(own.chroma_scale):.2f}, tone power {float(own.tone_power):.2f}), used as given (no selection)"
                     + ("; it applies by default, so the other g2r_jax rows carry it too" if own.apply_by_default else ""))
     else:
-        choice = fold_content_model(sets.real, train, sets.views(seed), sets.profile,
-                                    lambda lights: sets.fitted_to(lights, seed), seed=seed, fold=fold)
-        tried = ", ".join(f"{name} {error:.2f}" for name, error in choice.errors.items())
-        _note(sets, f"content rows, seed {seed}, fold {fold + 1}: kept {choice.name} (chroma scale "
-                    f"{float(choice.model.chroma_scale):.2f}), chosen by {SELECTION_ESTIMATOR} on a third of the "
-                    f"training folds (mean error, deg: {tried})")
+        from g2r_jax.content import describe
+
+        model = candidate_model(FITTED, sets.real.images[train], sets.real.illuminants[train], sets.views(seed),
+                                sets.profile)
+        choice = FoldChoice(model=model, name=FITTED, errors={})
+        _note(sets, f"content rows, seed {seed}, fold {fold + 1}: {describe(model)}, fitted to the "
+                    f"{len(train)} training files' scenes (no estimator chose it)")
     sets.cache[key] = choice
     return choice
 
