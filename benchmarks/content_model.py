@@ -148,7 +148,7 @@ def fit_speed(count: int) -> str:
 
     import g2r_jax
     from g2r_jax.batch.conversion import ConvertOptions, convert_files
-    from g2r_jax.content import content_model_from_files
+    from g2r_jax.content import content_model_from_files, describe
     from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels
     from g2r_jax.profile.fitting import as_shot_neutral
 
@@ -165,26 +165,27 @@ def fit_speed(count: int) -> str:
             info = read_dng_info(path)
             return read_dng_pixels(path, info), info.cfa_pattern, info.black_level, info.white_level, as_shot_neutral(info)
 
-        model, used = content_model_from_files(paths, read)
+        model, used = content_model_from_files(paths, read, colour_model=g2r_jax.load_profile("Canon600D").colour)
         seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     return (f"content model of {used} DNGs of 190 x 320 (read, thumbnails, statistics, fit): {seconds:.2f} s wall, "
-            f"{cpu:.2f} s CPU; "
-            f"chroma scale {float(model.chroma_scale):.2f}")
+            f"{cpu:.2f} s CPU; {describe(model)}")
 
 
 def apply_speed(repeats: int = 5) -> str:
     """CPU time of one jitted `unprocess` of a 1000 x 1500 sRGB frame with the content model off,
-    on as 'chroma' (folded into the colour matrix) and on as 'chroma_tone' (a pass over the pixels
-    with the image's peak), measured in turns (best of `repeats` per turn after a warm-up)."""
+    on as 'chroma' (folded into the colour matrix), 'chroma_tone' (a pass over the pixels with the
+    image's peak) and 'cast' (the image's mean, then a diagonal folded into the colour matrix),
+    measured in turns (best of `repeats` per turn after a warm-up)."""
     import jax
 
     import g2r_jax
-    from g2r_jax.content import content_model
+    from g2r_jax.content import content_model, prior_cast_model
     from g2r_jax.profile.schema import replace
 
     base = g2r_jax.load_profile("Canon600D")
     variants = {"off": (base, False), "chroma": (replace(base, content=content_model(0.35)), True),
-                "chroma_tone": (replace(base, content=content_model(0.35, 1.3, family="chroma_tone")), True)}
+                "chroma_tone": (replace(base, content=content_model(0.35, 1.3, family="chroma_tone")), True),
+                "cast": (replace(base, content=prior_cast_model(base.colour)), True)}
     image = np.random.default_rng(0).integers(0, 256, (1000, 1500, 3)).astype(np.uint8)
     key = jax.random.PRNGKey(0)
     best = {}
@@ -199,7 +200,7 @@ def apply_speed(repeats: int = 5) -> str:
     off = best["off"]
     return (f"unprocess of a 1000 x 1500 frame, CPU time (best of {2 * repeats}): content off {1000 * off:.1f} ms, "
             + ", ".join(f"{name} {1000 * best[name]:.1f} ms ({100 * (best[name] / off - 1):+.1f} %)"
-                        for name in ("chroma", "chroma_tone")))
+                        for name in ("chroma", "chroma_tone", "cast")))
 
 
 def main(argv=None) -> int:

@@ -255,3 +255,24 @@ def test_the_library_rows_give_the_benchmarks_figures(shared_data, monkeypatch):
                                    rtol=1e-6, err_msg=row)
     assert [c["family"] for c in ran["chosen"]] == [content_rows.FITTED] * 3
     assert sum("content rows, seed 0, fold" in note for note in result.notes) == 3
+
+
+def test_a_profile_that_applies_its_model_keeps_it_off_the_real_content_controls(monkeypatch):
+    """A fitted profile applies its 'cast' model by default: the CG rows carry it, the controls
+    (real scenes made RAW again) never do."""
+    from g2r_jax.content import content_model
+    from g2r_jax.profile.schema import replace
+
+    real, profile = _real_set()
+    profile = replace(profile, content=content_model(cast_scale=0.0, family="cast", apply_by_default=True))
+    calls = []
+    _fake_sets(monkeypatch, calls)
+    monkeypatch.setattr(estimators, "train_estimator",
+                        lambda name, x, y, seed=0: (lambda test: np.tile(y.mean(0), (len(test), 1))))
+    rows = ("fitted", "real_own_light", "real_other_light", "real_profile_light")
+    experiment.illuminant_experiment(real, profile, _cg(), rows=rows, estimators=("moments",), seeds=(0,), n=50,
+                                     folds=2, illuminant_model="prior")
+    simulated = [c[2] for c in calls if c[0] == "g2r"]
+    assert len(simulated) == 2 * len(rows)                        # one set per row and fold
+    with_model = [p for p in simulated if p.content is not None]
+    assert len(with_model) == 2 and all(p.content.family == "cast" for p in with_model)   # the 'fitted' row

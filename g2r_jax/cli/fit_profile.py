@@ -57,8 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--sensitivities-camera", help="camera name inside a camspec file with several cameras")
     parser.add_argument("--name", help="profile name (default: the output file's stem)")
     parser.add_argument("--no-content-model", action="store_true",
-                        help="do not fit the content model (the statistics of the DNGs' scenes that g2r-convert "
-                             "can bring CG images toward; stored off by default, see docs validation/content_model)")
+                        help="do not fit the content model (each CG frame's colour cast taken to the median cast "
+                             "of the DNGs' scenes; applied by default, see docs validation/content_model)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the mixture model's initialisation")
     add_common_flags(parser)
     return parser

@@ -52,8 +52,8 @@ def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds,
                                               seeds=seeds, n=n, folds=folds, progress=say)
     fitted = experiment.fitted_illuminants(profile, real.illuminants)
     synthetic = g2r_set(cg_views(inputs.cg, min(n, 300), 0), fitted, 0)
-    round_trip = g2r_set(real_to_linear_srgb(real.images, real.illuminants, profile), profile, 0,
-                         neutrals=real.illuminants)
+    round_trip = g2r_set(real_to_linear_srgb(real.images, real.illuminants, profile),
+                         experiment.without_content(profile), 0, neutrals=real.illuminants)
     differences = content.compare(synthetic, (real.images, real.illuminants), round_trip)
     document = {**result.to_dict(), "decomposition": {e: report.decomposition(result, e) for e in estimators},
                 "content": differences}

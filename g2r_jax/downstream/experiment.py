@@ -99,6 +99,14 @@ def fitted_illuminants(profile, illuminants: np.ndarray, kind: str = "auto", see
     return replace(profile, illuminants=illuminant_model_for(chromaticities, profile.colour, kind, seed))
 
 
+def without_content(profile):
+    """`profile` without its content model: the controls make RAW of real scenes, which the CG
+    content model (`g2r_jax.content`, applied by default in a fitted profile) must not touch."""
+    from g2r_jax.profile.schema import replace
+
+    return profile if getattr(profile, "content", None) is None else replace(profile, content=None)
+
+
 def register_row(name: str, label: str, builder) -> None:
     """Add a training-set row to the experiment (e.g. g2r_jax with and without a content model).
 
@@ -185,6 +193,7 @@ class _Sets:
         fitted = self.fitted(train, fold, seed)
         if row in ("fitted", "published"):
             return _sets.g2r_set(self.views(seed), fitted, salt + 4, recipe="published" if row == "published" else "dng")
+        fitted_real = without_content(fitted)   # the controls' content is real: no CG content model on it
         if row == "other_content":
             if self.other is None:
                 raise ValueError("row other_content needs another real set and its profile (other=...)")
@@ -193,16 +202,16 @@ class _Sets:
                 other_set, other_profile = self.other
                 self.cache[key] = _sets.real_to_linear_srgb(other_set.images, other_set.illuminants, other_profile)
             views, = _repeat_to(self.n, self.cache[key])
-            return _sets.g2r_set(views, fitted, salt + 5)
+            return _sets.g2r_set(views, fitted_real, salt + 5)
         views = _sets.real_to_linear_srgb(real.images[train], lights, self.profile)
         views, own = _repeat_to(self.n, views, lights)
         if row == "real_own_light":
-            return _sets.g2r_set(views, self.profile, salt + 6, neutrals=own)
+            return _sets.g2r_set(views, without_content(self.profile), salt + 6, neutrals=own)
         if row == "real_other_light":
             other = own[np.random.default_rng(salt + 7).permutation(len(own))]
-            return _sets.g2r_set(views, self.profile, salt + 7, neutrals=other)
+            return _sets.g2r_set(views, without_content(self.profile), salt + 7, neutrals=other)
         if row == "real_profile_light":
-            return _sets.g2r_set(views, fitted, salt + 8)
+            return _sets.g2r_set(views, fitted_real, salt + 8)
         raise ValueError(f"unknown row {row!r}; expected one of {', '.join(ROWS)}")
 
 
