@@ -1,11 +1,11 @@
 """The content model: a transform of a CG image in scene-linear light (linear sRGB, before the
 camera sees it) that brings its content statistics toward those of the camera's real scenes.
 
-`apply(model, linear)` is pure JAX (jit, vmap, grad). Three parameters, each the identity at 1:
+`apply(model, linear)` is pure JAX (jit, vmap, grad). Its parameters, each the identity at 1:
 - `chroma_scale` s: every pixel's chroma scaled toward its luminance, x' = Y + s (x - Y), Y the
   luminance of linear sRGB (IEC 61966-2-1 Y row): a convex combination for s in [0, 1], so
-  non-negative pixels stay non-negative and neutral pixels (and Y) are unchanged. Real
-  white-balanced scenes are about half as colourful as CG renders (issue 32; `statistics`).
+  non-negative pixels stay non-negative and neutral pixels (and Y) are unchanged (the issue's
+  lead; what it fixed was the frames' cast, see 'cast').
 - `tone_power` p: x' = peak (x / peak)^p, the image's peak kept: p > 1 darkens the body under
   its highlights (more dynamic range below the peak), p < 1 brightens it.
 - `cast_scale` c and `cast_target` t (family 'cast'): each image's grey-world cast moved toward
@@ -104,9 +104,9 @@ def as_matrix(model: ContentModel, linear=None) -> Float[Array, "3 3"] | None:
     'identity' and 'chroma': A = s I + (1 - s) 1 w^T, w the luminance row (row i gives
     x'_i = s x_i + (1 - s) Y). 'cast': A = diag(gains) of one image, so it needs that image
     `linear` (H, W, 3), or its `mean_grid` (None without it); zero padding at its edges leaves the
-    gains unchanged (they depend on the ratios of the channel means only). A colour stage that is itself a matrix
-    on linear sRGB takes M A in place of M, so the model costs no pass over the pixels
-    (`pipeline.content_stage`)."""
+    gains unchanged (they depend on the ratios of the channel means only). A colour stage that is
+    itself a matrix on linear sRGB takes M A in place of M, so the model costs no pass over the
+    pixels (`pipeline.content_stage`)."""
     if model.family == "chroma_tone":
         return None
     if model.family == "cast":
