@@ -141,6 +141,9 @@ def test_fit_profile_stores_the_cast_model_on_and_convert_follows_the_flags(tmp_
            for i, flags in enumerate(((), ("--no-content-model",), ("--content-model",)))}
     assert off[()] == off[("--no-content-model",)] != off[("--content-model",)]
     assert off[("--no-content-model",)] == on[("--no-content-model",)]
+    manifest = lambda name: json.loads((tmp_path / name / "manifest.jsonl").read_text().splitlines()[0])
+    assert manifest("on0")["content_model"].startswith("cast, ")                # says what the scene went through
+    assert "content_model" not in manifest("on1") and "content_model" not in manifest("off0")
 
 
 def test_convert_content_model_on_a_shipped_profile_uses_the_prior_and_says_so(tmp_path, capsys):

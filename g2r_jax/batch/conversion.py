@@ -223,12 +223,26 @@ def collision_error(path, name: str) -> DngError:
                           "rename one")
 
 
-def _manifest_record(path, output, metadata, seed):
-    return {"input": str(path), "output": str(output),
-            "neutral": [round(float(v), 8) for v in np.asarray(metadata["neutral"])],
-            "xy": [round(float(v), 8) for v in np.asarray(metadata["xy"])],
-            "cct": round(float(metadata["cct"]), 3), "iso": round(float(metadata["iso"]), 3),
-            "exposure_gain": round(float(metadata["exposure_gain"]), 6), "seed": seed}
+def _manifest_record(path, output, metadata, seed, content: str | None = None):
+    record = {"input": str(path), "output": str(output),
+              "neutral": [round(float(v), 8) for v in np.asarray(metadata["neutral"])],
+              "xy": [round(float(v), 8) for v in np.asarray(metadata["xy"])],
+              "cct": round(float(metadata["cct"]), 3), "iso": round(float(metadata["iso"]), 3),
+              "exposure_gain": round(float(metadata["exposure_gain"]), 6), "seed": seed}
+    if content is not None:   # the content model the scene went through (`g2r_jax.content.describe`)
+        record["content_model"] = content
+    return record
+
+
+def applied_content(profile) -> str | None:
+    """What the conversion does to the scene before the camera: the profile's content model when
+    it applies by default (conversion follows the profile's block), else None."""
+    model = getattr(profile, "content", None)
+    if model is None or not model.apply_by_default:
+        return None
+    from g2r_jax.content import describe
+
+    return describe(model)
 
 
 def convert_files(inputs, profile, out_dir, *, neutrals=None, options: ConvertOptions | None = None,
@@ -346,7 +360,7 @@ class _BatchRun:
             opcodes = self.lens_for(*mosaic.shape)[1] if options.lens_shading else None
             info = dng_info_for(self.profile, metadata, mosaic.shape[0], mosaic.shape[1], noise=options.noise,
                                 opcode_list2=opcodes)
-            record = _manifest_record(path, f"{name}.dng", metadata, options.seed)
+            record = _manifest_record(path, f"{name}.dng", metadata, options.seed, applied_content(self.profile))
             folder = self.folder
             atomic_write_bytes(output, write_dng_bytes(np.asarray(mosaic), info, where=output,
                                                        compression=options.compression),
