@@ -134,9 +134,10 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
     loop from the input codes to the uint16 output, with no float64 and no intermediate arrays.
     """
     # 1. Decode display values to linear sRGB.
-    linear = decode(image, "gamma2.2" if recipe == "published" else transfer)
-    grid = decode(_content.mean_grid(image), "gamma2.2" if recipe == "published" else transfer)
-    linear, conditions = content_stage(linear, conditions, profile, content, colour, grid=grid)
+    curve = "gamma2.2" if recipe == "published" else transfer
+    linear = decode(image, curve)
+    linear, conditions = content_stage(linear, conditions, profile, content, colour,
+                                       grid=lambda: decode(_content.mean_grid(image), curve))
 
     # 5. Un-white-balance and mosaic in one step, scaled so that white reaches 1 in the
     #    strongest channel, then a global exposure gain.
@@ -178,15 +179,15 @@ def content_stage(linear, conditions, profile, content: bool | None, colour: str
 
     **Returns:** (linear, conditions). A linear model (`content.as_matrix`) before a colour stage
     that is a matrix on linear sRGB is folded into that matrix (M A: the same result to float
-    rounding, no pass over the pixels; the 'cast' family's gains come from `grid`, the image's
-    `content.mean_grid` decoded on its own, when given); otherwise the model transforms the pixels."""
+    rounding, no pass over the pixels; the 'cast' family's gains come from `grid()`, when given:
+    the image's `content.mean_grid` decoded on its own); otherwise the model transforms the pixels."""
     model = getattr(profile, "content", None)
     if content and model is None:
         raise ValueError(f"content=True, but profile {profile.info.name!r} has no content model "
                          "(g2r-fit-profile fits one)")
     if model is None or content is False or (content is None and not model.apply_by_default):
         return linear, conditions
-    matrix = _content.as_matrix(model, linear if grid is None else grid)
+    matrix = _content.as_matrix(model, grid() if grid is not None and model.family == "cast" else linear)
     if matrix is None or colour not in MATRIX_ON_LINEAR:
         return _content.apply(model, linear), conditions
     return linear, {**conditions, "srgb_to_wb_camera": conditions["srgb_to_wb_camera"] @ matrix}

@@ -31,17 +31,19 @@ _BISECTION_STEPS = 24
 _apply = jax.jit(apply)
 
 
-def _medians(stats, fallback: dict, what: str) -> tuple[dict, str]:
+def _medians(stats, fallback: dict, what: str, names=_MEDIANS) -> tuple[dict, str]:
+    """The medians `names` of `stats` (a `ContentStatistics`, a dict of medians, or None for
+    `fallback`, a prior) and where they came from."""
     if stats is None:
-        return {k: fallback["medians"][k] for k in _MEDIANS}, fallback["source"]
+        return {k: fallback["medians"][k] for k in names}, fallback["source"]
     if isinstance(stats, ContentStatistics):
         if len(stats) == 0:
             raise ValueError(f"{stats.source or what}: no images to fit the content model to")
-        return {k: stats.median(k) for k in _MEDIANS}, stats.source or what
-    missing = [k for k in _MEDIANS if k not in stats]
+        return {k: stats.median(k) for k in names}, stats.source or what
+    missing = [k for k in names if k not in stats]
     if missing:
         raise ValueError(f"{what} medians lack {', '.join(missing)}")
-    return {k: float(stats[k]) for k in _MEDIANS}, what
+    return {k: float(stats[k]) for k in names}, what
 
 
 def _transformed_median(sample, to_camera, name: str, scale: float, power: float) -> float:
@@ -119,18 +121,7 @@ def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str =
 def _cast_model(real_statistics, to_camera) -> ContentModel:
     """'cast': the target colour is the real images' median grey-world cast, exp(cast_red), 1,
     exp(cast_blue) in the camera's white-balanced RGB, taken to linear sRGB by to_camera^-1."""
-    names = ("cast_red", "cast_blue")
-    if real_statistics is None:
-        real, source = {k: _prior.REAL_SCENES["medians"][k] for k in names}, _prior.REAL_SCENES["source"]
-    elif isinstance(real_statistics, ContentStatistics):
-        if len(real_statistics) == 0:
-            raise ValueError(f"{real_statistics.source or 'real images'}: no images to fit the content model to")
-        real, source = {k: real_statistics.median(k) for k in names}, real_statistics.source or "real images"
-    else:
-        missing = [k for k in names if k not in real_statistics]
-        if missing:
-            raise ValueError(f"real images' medians lack {', '.join(missing)}")
-        real, source = {k: float(real_statistics[k]) for k in names}, "real images"
+    real, source = _medians(real_statistics, _prior.REAL_SCENES, "real images", ("cast_red", "cast_blue"))
     if not all(np.isfinite(v) for v in real.values()):
         raise ValueError(f"cannot fit the content model: a median cast of {source} is not finite")
     in_camera = np.exp([real["cast_red"], 0.0, real["cast_blue"]])

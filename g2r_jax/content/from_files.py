@@ -66,6 +66,7 @@ def content_model_from_files(files, read: Callable, *, on_error: Optional[Callab
         return None, 0
     to_camera = None
     if colour_model is not None:
-        neutral = np.median(np.stack(neutrals) / np.stack(neutrals)[:, 1:2], axis=0)
+        stacked = np.stack(neutrals)
+        neutral = np.median(stacked / stacked[:, 1:2], axis=0)
         to_camera = srgb_to_camera_matrices(neutral[None], colour_model)[0]
     return fit_content_model(real, None, family=family, to_camera=to_camera), len(thumbnails)

@@ -132,8 +132,7 @@ def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"]) -> Float[Ar
         return x
     if model.family == "cast":
         return x * _cast_gains(x, model)
-    weights = [float(w) for w in LUMINANCE]   # element-wise (fuses with the pipeline's other pixel stages)
-    luminance = (weights[0] * x[..., 0] + weights[1] * x[..., 1] + weights[2] * x[..., 2])[..., None]
+    luminance = _luminance(x)
     s = jnp.asarray(model.chroma_scale, jnp.float32)
     x = x + (s - 1.0) * (x - luminance)                     # = Y + s (x - Y); exactly x at s = 1
     if model.family != "chroma_tone":                       # static: no power, no image-wide peak
@@ -143,6 +142,13 @@ def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"]) -> Float[Ar
     safe_peak = jnp.where(peak > 0, peak, 1.0)
     toned = safe_peak * jnp.power(jnp.clip(x / safe_peak, 0.0, None), p)
     return jnp.where(p == 1.0, x, toned)
+
+
+def _luminance(x):
+    """Y of linear sRGB, (..., 3) -> (..., 1), element-wise (fuses with the pipeline's other
+    pixel stages)."""
+    weights = [float(w) for w in LUMINANCE]
+    return weights[0] * x[..., 0:1] + weights[1] * x[..., 1:2] + weights[2] * x[..., 2:3]
 
 
 MEAN_GRID = 64   # the image's mean colour is taken over at least this many rows and columns of it
@@ -167,8 +173,6 @@ def _cast_gains(x, model: ContentModel):
     """(Y_m t_k / m_k)^(1 - c) per image (`_image_mean`), shaped to multiply `x`; a channel whose
     mean is 0 keeps its gain 1."""
     mean = _image_mean(x)
-    weights = [float(w) for w in LUMINANCE]
-    luminance = weights[0] * mean[..., 0:1] + weights[1] * mean[..., 1:2] + weights[2] * mean[..., 2:3]
-    wanted = luminance * jnp.asarray(model.cast_target, jnp.float32)
+    wanted = _luminance(mean) * jnp.asarray(model.cast_target, jnp.float32)
     ratio = jnp.where(mean > 0, wanted / jnp.where(mean > 0, mean, 1.0), 1.0)
     return jnp.power(ratio, 1.0 - jnp.asarray(model.cast_scale, jnp.float32))

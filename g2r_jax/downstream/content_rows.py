@@ -180,11 +180,9 @@ def content_row(sets, train: np.ndarray, fold: int, seed: int):
     """Row 'content': the 'fitted' row's set (same lights, noise and seed) on the adapted views.
     The model is applied here once: the profile goes to the simulation without it."""
     from g2r_jax.downstream import training_sets
-    from g2r_jax.profile.schema import replace
+    from g2r_jax.downstream.experiment import without_content
 
-    fitted = sets.fitted(train, fold, seed)
-    if getattr(fitted, "content", None) is not None:
-        fitted = replace(fitted, content=None)
+    fitted = without_content(sets.fitted(train, fold, seed))
     return training_sets.g2r_set(_adapted(sets, train, fold, seed), fitted, 1000 * seed + 10 * fold + 4)
 
 
