@@ -96,8 +96,17 @@ def test_the_cast_fit_takes_the_real_images_median_cast_through_the_camera_matri
     model = content.fit_content_model(stats, family="cast", to_camera=to_camera)
     assert model.family == "cast" and float(model.cast_scale) == content.CAST_KEPT and "warm scenes" in model.source
     in_camera = to_camera @ np.asarray(model.cast_target, np.float64)
-    expected = np.exp([stats.median("cast_red"), 0.0, stats.median("cast_blue")])
-    np.testing.assert_allclose(in_camera / in_camera[1], expected, rtol=1e-5)
+    shrunk = []                                   # 20 files: their median pulled toward the prior's
+    for name in ("cast_red", "cast_blue"):
+        spread = prior.CAST_SPREAD[name]
+        weight = 20 / (20 + np.pi / 2 * (spread["per_image"] / spread["between_cameras"]) ** 2)
+        shrunk.append(weight * stats.median(name) + (1 - weight) * prior.REAL_SCENES["medians"][name])
+    np.testing.assert_allclose(in_camera / in_camera[1], np.exp([shrunk[0], 0.0, shrunk[1]]), rtol=1e-5)
+    one = content.fit_content_model(content.statistics(real[:1]), family="cast", to_camera=to_camera)
+    one_cast = np.log((to_camera @ np.asarray(one.cast_target, np.float64))[[0, 2]] /
+                      (to_camera @ np.asarray(one.cast_target, np.float64))[1])
+    np.testing.assert_allclose(one_cast, [prior.REAL_SCENES["medians"]["cast_red"],
+                                          prior.REAL_SCENES["medians"]["cast_blue"]], atol=0.005)   # one scene: the prior
     assert stats.median("cast_red") > 0.03 and stats.median("cast_blue") < -0.05   # the cast it was made with
     prior_model = content.fit_content_model(None, family="cast")
     assert "NUS" in prior_model.source

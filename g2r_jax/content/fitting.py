@@ -118,10 +118,28 @@ def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str =
     return content_model(scale, power, family=family, source=f"{real_source} vs {cg_source}", target=real)
 
 
+def _toward_the_prior(real: dict, stats) -> dict:
+    """The files' median casts shrunk toward the prior's by how many files there are: the median
+    of n files has variance about (pi / 2) s^2 / n (s the per-image spread), the prior misses a
+    camera's median by about t (the cameras' spread, `prior.CAST_SPREAD`), so the precision-
+    weighted mean gives the files weight n / (n + (pi / 2) s^2 / t^2): 1 file 0.7 % (red) and
+    1.7 % (blue), 150 files 52 % and 72 %. One scene's cast is not the camera's."""
+    out = {}
+    for name, value in real.items():
+        n = int(np.isfinite(stats.values[name]).sum())
+        spread = _prior.CAST_SPREAD[name]
+        weight = n / (n + 0.5 * np.pi * (spread["per_image"] / spread["between_cameras"]) ** 2)
+        out[name] = weight * value + (1.0 - weight) * _prior.REAL_SCENES["medians"][name]
+    return out
+
+
 def _cast_model(real_statistics, to_camera) -> ContentModel:
-    """'cast': the target colour is the real images' median grey-world cast, exp(cast_red), 1,
-    exp(cast_blue) in the camera's white-balanced RGB, taken to linear sRGB by to_camera^-1."""
+    """'cast': the target colour is the real images' median grey-world cast (shrunk toward the
+    prior's by their number, `_toward_the_prior`), exp(cast_red), 1, exp(cast_blue) in the
+    camera's white-balanced RGB, taken to linear sRGB by to_camera^-1."""
     real, source = _medians(real_statistics, _prior.REAL_SCENES, "real images", ("cast_red", "cast_blue"))
+    if isinstance(real_statistics, ContentStatistics):
+        real = _toward_the_prior(real, real_statistics)
     if not all(np.isfinite(v) for v in real.values()):
         raise ValueError(f"cannot fit the content model: a median cast of {source} is not finite")
     in_camera = np.exp([real["cast_red"], 0.0, real["cast_blue"]])

@@ -24,6 +24,11 @@ REAL_SCENES = {"medians": {"chroma_spread": 0.22400, "brightness": 0.11634, "cas
 REFERENCE_CG = {"medians": {"chroma_spread": 0.14527, "brightness": 0.31836, "cast_red": -0.08946,
                             "cast_blue": 0.13251},
                 "source": "reference CG: 343 CARLA frames"}
+# How far one camera's median cast can be trusted from n of its files (`fitting._cast_model`): the
+# per-image robust sd of the cast (1.4826 MAD, median over the nine NUS cameras) and the sd of the
+# nine cameras' medians about each other, measured on the NUS thumbnails as REAL_SCENES is.
+CAST_SPREAD = {"cast_red": {"per_image": 0.1163, "between_cameras": 0.0123},
+               "cast_blue": {"per_image": 0.1530, "between_cameras": 0.0254}}
 NUS_CAMERAS = ("Canon1DsMkIII", "Canon600D", "FujifilmXM1", "NikonD40", "NikonD5200", "OlympusEPL6",
                "PanasonicGX1", "SamsungNX2000", "SonyA57")
 
