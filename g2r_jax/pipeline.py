@@ -193,6 +193,14 @@ def content_stage(linear, conditions, profile, content: bool | None, colour: str
     return linear, {**conditions, "srgb_to_wb_camera": conditions["srgb_to_wb_camera"] @ matrix}
 
 
+def without_content(profile):
+    """`profile` without its content model, for conversions of real scenes (the downstream
+    controls), which the CG content model (`g2r_jax.content`, applied by default in a fitted
+    profile) must not touch."""
+    return profile if getattr(profile, "content", None) is None else eqx.tree_at(
+        lambda p: p.content, profile, None, is_leaf=lambda x: x is None)
+
+
 def without_illuminants(profile):
     """`profile` with no illuminant model (None), for conversions that are given their lights
     (`neutral=` of `unprocess` / `unprocess_batch`, e.g. a training set's or a control's fixed

@@ -180,7 +180,7 @@ def content_row(sets, train: np.ndarray, fold: int, seed: int):
     """Row 'content': the 'fitted' row's set (same lights, noise and seed) on the adapted views.
     The model is applied here once: the profile goes to the simulation without it."""
     from g2r_jax.downstream import training_sets
-    from g2r_jax.downstream.experiment import without_content
+    from g2r_jax.pipeline import without_content
 
     fitted = without_content(sets.fitted(train, fold, seed))
     return training_sets.g2r_set(_adapted(sets, train, fold, seed), fitted, 1000 * seed + 10 * fold + 4)

@@ -41,6 +41,7 @@ import numpy as np
 from g2r_jax.downstream.real_sets import RealSet
 from g2r_jax.downstream import training_sets as _sets
 from g2r_jax.measure import angular_error_degrees, error_summary, folds_of
+from g2r_jax.pipeline import without_content
 
 ROWS = {
     "upi": "UPI (Brooks et al. 2019)",
@@ -97,14 +98,6 @@ def fitted_illuminants(profile, illuminants: np.ndarray, kind: str = "auto", see
 
     chromaticities = neutral_to_chromaticity(np.asarray(illuminants, np.float64))
     return replace(profile, illuminants=illuminant_model_for(chromaticities, profile.colour, kind, seed))
-
-
-def without_content(profile):
-    """`profile` without its content model: the controls make RAW of real scenes, which the CG
-    content model (`g2r_jax.content`, applied by default in a fitted profile) must not touch."""
-    from g2r_jax.profile.schema import replace
-
-    return profile if getattr(profile, "content", None) is None else replace(profile, content=None)
 
 
 def register_row(name: str, label: str, builder) -> None:
