@@ -38,19 +38,31 @@ TEMPLATE = "Canon600D"
 
 
 def camera_profile(name: str):
-    """The shipped profile, or the camera's matrix pair on the template's sensor."""
+    """The shipped profile, or the camera's matrix pair on the template's sensor, without a content
+    model: the benchmarks apply the content model they measure to the CG views themselves
+    (`shipped_content_model` is the one a shipped profile carries)."""
     import g2r_jax
     from g2r_jax.colour.dng_model import DngColourModel
+    from g2r_jax.pipeline import without_content
     from g2r_jax.profile.fitting import illuminant_model_for
     from g2r_jax.profile.schema import replace
 
     if name in g2r_jax.shipped_profiles():
-        return g2r_jax.load_profile(name)
+        return without_content(g2r_jax.load_profile(name))
     tags = json.loads((DATA / "cameras" / "color_matrices.json").read_text())[name]
     colour = DngColourModel.from_tags((17, 21), (np.reshape(tags["ColorMatrix_StandardLightA_tag17"], (3, 3)),
                                                  np.reshape(tags["ColorMatrix_D65_tag21"], (3, 3))))
-    template = g2r_jax.load_profile(TEMPLATE)
+    template = without_content(g2r_jax.load_profile(TEMPLATE))
     return replace(template, colour=colour, illuminants=illuminant_model_for(np.zeros((0, 2)), colour, "prior"))
+
+
+def shipped_content_model(name: str, colour_model):
+    """The content model a shipped profile of NUS camera `name` carries (profiles/build_shipped_profiles.py):
+    the prior's 'cast' target with the camera's own scenes left out, through its colour matrices."""
+    from g2r_jax.content import prior_cast_model
+    from g2r_jax.content.prior import real_scenes_without
+
+    return prior_cast_model(colour_model, real_scenes_without(DATA, name), "prior without " + name)
 
 
 def other_camera(name: str, cameras) -> str:

@@ -13,7 +13,9 @@ NUS cameras out (only the Gehler-Shi lights: other scenes, since the NUS cameras
 same scenes, so `pooled` may know the test camera's scenes' lights from its siblings). Each count below all is
 drawn `--draws` times per fold (a different random subset of the fold's training lights each).
 Content: `cg` (the CARLA frames, the paper's setting), `cg-cast` (the same through the `cast`
-content model, each frame's own cast removed: issue 32, for UPI too) or `real` (the training
+content model a shipped profile carries, each frame's cast taken to the NUS prior's with the camera
+under test left out, through its matrices: issue 32, for UPI too; so `shipped` on `cg-cast` is the
+profile as shipped) or `real` (the training
 folds' real images relit to the model's lights, `experiment`'s real_profile_light: the lights'
 own cost).
 Identical models (e.g. `auto` below 10 lights and `prior`) are trained once.
@@ -42,7 +44,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from downstream_nus import CAMERAS, CARLA, NUS, camera_profile  # noqa: E402
+from downstream_nus import CAMERAS, CARLA, NUS, camera_profile, shipped_content_model  # noqa: E402
 
 MODELS = ("prior", "locus", "kernel", "auto", "pooled", "pooled-gs")
 NO_LIGHT_MODELS = ("prior", "locus")
@@ -121,10 +123,10 @@ def run_camera(camera, args, out, say):
     for seed in range(args.seeds):
         views = sets.cg_views(linear, args.n, seed)
         cg_views = {"cg": views}
-        if "cg-cast" in args.content:    # the CARLA views through the 'cast' content model (c = 0)
+        if "cg-cast" in args.content:    # the CARLA views through the content model a shipped profile carries
             from g2r_jax import content as content_model
 
-            cg_views["cg-cast"] = np.asarray(content_model.apply(content_model.fit_content_model(family="cast"), views))
+            cg_views["cg-cast"] = np.asarray(content_model.apply(shipped_content_model(camera, profile.colour), views))
         for fold, test in enumerate(folds):
             train = np.setdiff1d(np.arange(len(real.images)), test)
             trained, relit = {}, []

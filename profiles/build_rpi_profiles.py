@@ -37,7 +37,9 @@ from pathlib import Path
 import colour
 import numpy as np
 
+from build_shipped_profiles import with_prior_content   # this folder's script: the same content model
 from g2r_jax.colour import conversions, dng_model
+from g2r_jax.profile.provenance import with_provenance
 from g2r_jax.profile.schema import SCHEMA_NAME, SCHEMA_VERSION, profile_from_dict, save_profile
 from g2r_jax.runtime import x64
 
@@ -552,6 +554,8 @@ def main(argv=None) -> int:
         path = HERE / f"{name}.json"
         with x64.enable_x64():
             profile = profile_from_dict(document, str(path), np.float64)
+        profile, content = with_prior_content(profile)
+        profile = with_provenance(profile, **dict(profile.info.provenance_parts), content=content)
         save_profile(profile, path)
         print(f"{name}: CCM reproduction (CT K: DNG CCT, mean / max CIEDE2000)")
         for row in ccm_reproduction(tuning, ct_curve(tuning), profile.colour):

@@ -2,8 +2,8 @@
 
     python profiles/build_shipped_profiles.py
 
-Each profile's `provenance` says, per part (colour, levels, noise, illuminants, exposure), where its
-numbers come from. The Raspberry Pi profiles have their own script (build_rpi_profiles.py).
+Each profile's `provenance` says, per part (colour, levels, noise, illuminants, exposure, content), where
+its numbers come from. The Raspberry Pi profiles have their own script (build_rpi_profiles.py).
 
 Sources besides ../shared/data: camera levels and CFA layouts read from public camera tables (rawspeed's
 data/cameras.xml, LibRaw's src/tables/colordata.cpp); our own numbers, the table named in each profile.
@@ -256,6 +256,26 @@ def gehler_shi_5d_chromaticities() -> np.ndarray:
 
 # ------------------------------------------------------------------------------ profiles
 
+def with_prior_content(profile, nus_camera: str | None = None):
+    """(profile with the prior's 'cast' content model applied by default, its provenance): the CG
+    frames' grey-world cast taken to the real scenes' median (`content.prior_cast_model`), what
+    `g2r-fit-profile` fits from a folder of DNGs, so that a shipped profile converts CG frames as a
+    fitted one does (docs/pages/validation/content_model.md, finding 3; illuminant_models.md, fifth
+    round). A NUS camera's own scenes are left out of the prior (`prior.real_scenes_without`)."""
+    from g2r_jax.content import describe, prior_cast_model, with_default
+    from g2r_jax.content.prior import real_scenes_without
+
+    medians = real_scenes_without(DATA, nus_camera) if nus_camera else None
+    scenes = (f"the other eight NUS cameras' scenes ({nus_camera}'s own left out)" if nus_camera
+              else "the nine NUS cameras' scenes")
+    model = with_default(prior_cast_model(profile.colour, medians, f"prior: NUS 8-camera set, {scenes}"), True)
+    return replace(profile, content=model), (
+        f"{describe(model)}; applied by default (g2r-convert --no-content-model turns it off). Target: the median "
+        f"grey-world cast of real white-balanced scenes, the median of the per-camera medians of {scenes} "
+        f"(../shared/data/estimation/nus, g2r_jax.content.prior), carried to linear sRGB through this camera's "
+        f"colour matrices at D65.")
+
+
 def dslr_profiles(cameras: dict, noise_db: dict, exposure: tuple) -> None:
     for name, camera in DSLRS.items():
         noise = raw_noise(darktable_rows(noise_db, *camera["darktable"]), camera)
@@ -275,8 +295,10 @@ def dslr_profiles(cameras: dict, noise_db: dict, exposure: tuple) -> None:
                            "../shared/data/illuminants/gehler_shi/real_illum_568.mat; mixture BIC-selected.")
         levels = (f"{camera['cfa']}, black {camera['black']:g}, white {camera['white']:g} ({camera['bits']}-bit), "
                   f"from public camera tables. {camera['levels']}")
+        profile, content = with_prior_content(profile, name if camera["matrices"] == "nus" else None)
         profile = with_provenance(replace(profile, exposure=exposure[0]), colour=colour, levels=levels,
-                                  noise=noise_provenance(camera, noise), illuminants=illuminants, exposure=exposure[1])
+                                  noise=noise_provenance(camera, noise), illuminants=illuminants, exposure=exposure[1],
+                                  content=content)
         save_profile(profile, HERE / f"{name}.json")
 
 
@@ -291,6 +313,7 @@ def s20fe_night(cameras: dict) -> None:
     noise = read_noise_table(DATA / "noise" / "s20fe_heteroscedastic_gaussian.csv", info.black_level, info.white_level)
     profile = fit_profile([info], name="s20fe_night", illuminant_model=S20_CHOICE, noise=noise,
                           chromaticities=neutral_to_chromaticity(rows))
+    profile, content = with_prior_content(profile)
     profile = with_provenance(
         profile,
         colour=f"its D65 ColorMatrix only (one calibration illuminant), from the Graphics2RAW release. The only "
@@ -302,7 +325,8 @@ def s20fe_night(cameras: dict) -> None:
         illuminants=f"45 measured gray-card night illuminants ({S20_CHOICE} model and convex hull, sodium lamps kept). "
                     f"s20fe_night_graycard_45.csv ({PAPERS}).",
         exposure="constant (log2 gain 0): no measured exposure statistics of night scenes. The Gehler-Shi "
-                 "spread of the other profiles is of day and indoor scenes.")
+                 "spread of the other profiles is of day and indoor scenes.",
+        content=content + " No night scenes' cast was measured: the prior's scenes are of day and indoor light.")
     save_profile(profile, HERE / "s20fe_night.json")
 
 
@@ -311,12 +335,13 @@ def gopro(exposure: tuple) -> None:
     profile, illuminants = with_pooled_lights(
         fit_profile([read_dng_info(path)], name="gopro_hero6", illuminant_model=WITHOUT_MEASURED_ILLUMINANTS))
     source = "the real GoPro HERO6 Black DNG gopro_hero6_GOPR0024.dng (gopro/gpr repository, Apache-2.0 or MIT)"
+    profile, content = with_prior_content(profile)
     profile = with_provenance(
         replace(profile, exposure=exposure[0]),
         colour=f"ColorMatrix pair (Tungsten, D50) of a real GoPro HERO6 Black DNG. Tags of {source}.",
         levels=f"CFA, black and white levels of a real GoPro HERO6 Black DNG. Tags of {source}.",
         noise=f"NoiseProfile tag of a real GoPro HERO6 Black DNG (one ISO: 100). Tag of {source}.",
-        illuminants=illuminants, exposure=exposure[1])
+        illuminants=illuminants, exposure=exposure[1], content=content)
     save_profile(profile, HERE / "gopro_hero6.json")
 
 

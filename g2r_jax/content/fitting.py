@@ -19,6 +19,8 @@ Without real images the real medians come from the prior of real scenes
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import numpy as np
 
@@ -152,14 +154,19 @@ def _cast_model(real_statistics, to_camera) -> ContentModel:
                          source=f"{source}: the CG frames' grey-world cast to the real scenes' median", target=real)
 
 
-def prior_cast_model(colour_model) -> ContentModel:
+def prior_cast_model(colour_model, real_medians: dict | None = None, source: str = "") -> ContentModel:
     """The 'cast' model for a camera without files at hand (a shipped profile): the prior of real
-    scenes' median cast (`prior.REAL_SCENES`), carried to linear sRGB through `colour_model`
-    (`DngColourModel`) at D65 (CIE 15:2004 xy 0.3127, 0.3290)."""
+    scenes' median cast (`prior.REAL_SCENES`, or `real_medians`, a dict with `cast_red` and
+    `cast_blue` from `source`, e.g. `prior.real_scenes_without(data, camera)`), carried to linear
+    sRGB through `colour_model` (`DngColourModel`) at D65 (CIE 15:2004 xy 0.3127, 0.3290)."""
     import jax.numpy as jnp
 
     from g2r_jax.colour.dng_model import xy_to_camera_neutral
     from g2r_jax.content.real_images import srgb_to_camera_matrices
 
     neutral = np.asarray(xy_to_camera_neutral(jnp.asarray([0.3127, 0.3290]), colour_model), np.float64)
-    return fit_content_model(None, family="cast", to_camera=srgb_to_camera_matrices(neutral[None], colour_model)[0])
+    to_camera = srgb_to_camera_matrices(neutral[None], colour_model)[0]
+    if real_medians is None:
+        return fit_content_model(None, family="cast", to_camera=to_camera)
+    model = _cast_model({k: real_medians[k] for k in ("cast_red", "cast_blue")}, to_camera)
+    return dataclasses.replace(model, source=model.source.replace("real images", source or "given medians", 1))

@@ -60,7 +60,15 @@ def _nus(data: Path, camera: str):
 
 def measure_real_scenes(data: Path) -> dict:
     """`REAL_SCENES`'s medians recomputed from ../shared/data (`data`)."""
-    per_camera = [nus_statistics(data, camera).medians() for camera in NUS_CAMERAS]
+    return real_scenes_without(data, None)
+
+
+def real_scenes_without(data: Path, camera: str | None) -> dict:
+    """`REAL_SCENES`'s medians with the NUS camera `camera` left out (the median of the other eight
+    cameras' medians: none of a camera's own scenes informs its own prior); None leaves none out."""
+    if camera is not None and camera not in NUS_CAMERAS:
+        raise ValueError(f"{camera!r} is not a NUS camera ({', '.join(NUS_CAMERAS)})")
+    per_camera = [nus_statistics(data, name).medians() for name in NUS_CAMERAS if name != camera]
     return {k: float(np.median([m[k] for m in per_camera])) for k in per_camera[0]}
 
 

@@ -2,7 +2,7 @@
 
 A profile document's `provenance` is either one readable text (older profiles, fitted ones) or an
 object with one text per part: `colour` (matrices), `levels` (CFA, black and white levels), `noise`,
-`illuminants`, `exposure`. The first sentence of each part is its summary (what
+`illuminants`, `exposure`, `content` (the CG content model). The first sentence of each part is its summary (what
 `describe_profile` prints); the rest says how the numbers were derived. Plain JSON and text, no JAX,
 so a command can list profiles without the numerical stack.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 
-PARTS = ("colour", "levels", "noise", "illuminants", "exposure")
+PARTS = ("colour", "levels", "noise", "illuminants", "exposure", "content")
 LISTED_PARTS = ("colour", "noise", "illuminants")
 
 
