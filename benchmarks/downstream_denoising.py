@@ -55,9 +55,12 @@ def main(argv=None):
     import g2r_jax
     from g2r_jax.downstream import bursts, denoising
     from g2r_jax.profile import schema
+    from g2r_jax.pipeline import without_content
 
     started = time.perf_counter()
-    profile = g2r_jax.load_profile(args.profile)
+    # The rows measure the noise model: the CG frames go in without the profile's content model
+    # unless --content-* gives one (the figures of the validation pages were measured so).
+    profile = without_content(g2r_jax.load_profile(args.profile))
     cg = sorted(args.cg_folder.glob("*.png"))[:args.cg] if args.cg else []
     if args.cg and not cg:
         print(f"no CG images in {args.cg_folder}: CG content left out")

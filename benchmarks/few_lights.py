@@ -239,6 +239,26 @@ def energy_table(cameras) -> str:
     return "\n".join(out)
 
 
+def where_lights_sit() -> str:
+    """Markdown: each NUS camera's measured lights as its own colour matrices place them (median
+    mired and Duv x 1000, `illuminants.pooled`'s data), against the median of the other cameras'
+    medians (what the pooled lights, carried through the matrices, expect). The NUS cameras shot
+    largely the same scenes, so a camera far from the others is one whose matrices put the same
+    lights elsewhere: its pooled lights (and the prior) sit off its real ones, whatever the model."""
+    from g2r_jax.illuminants.pooled import load_pooled
+
+    pool = load_pooled()
+    medians = {name: np.median(points, axis=0) for name, points in pool.items() if name in CAMERAS}
+    out = ["| camera | own lights: mired / Duv x 1000 | other NUS cameras' | difference | share above 200 mired |",
+           "|---|---|---|---|---|"]
+    for name in sorted(medians):
+        others = np.median([m for other, m in medians.items() if other != name], axis=0)
+        own, d = medians[name], medians[name] - others
+        out.append(f"| {name} | {own[0]:.0f} / {own[1]:+.1f} | {others[0]:.0f} / {others[1]:+.1f} | "
+                   f"{d[0]:+.0f} / {d[1]:+.1f} | {np.mean(pool[name][:, 0] > 200):.2f} |")
+    return "\n".join(out)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cameras", default=",".join(CAMERAS))
@@ -264,6 +284,7 @@ def main(argv=None) -> int:
         return 2
     if args.energy:
         print(energy_table(args.cameras.split(",")))
+        print("\n" + where_lights_sit())
         return 0
     from g2r_jax.runtime import compile_cache
 

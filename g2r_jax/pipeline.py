@@ -340,8 +340,9 @@ def simulate_patches(profile, neutrals, chart_srgb=None, *, recipe: str = "dng",
                      seed: int = 0, noise: bool = False, batch: int = 256) -> np.ndarray:
     """Per-channel patch means (N, 24, 3) of the mosaics `unprocess_batch` makes from a chart
     image (sRGB-encoded `chart_srgb`, default `colour.charts.chart_srgb()`; `colour.chart_fit.
-    chart_image`) with each image's neutral, exposure gain 1, no sensor effects; black level
-    removed, in normalised units: the pipeline's side of `colour.chart_fit`'s chart scores."""
+    chart_image`) with each image's neutral, exposure gain 1, no sensor effects and no content
+    model (a chart's colours are physical, not a renderer's); black level removed, in normalised
+    units: the pipeline's side of `colour.chart_fit`'s chart scores."""
     from g2r_jax.colour import charts as _charts
     from g2r_jax.colour.chart_fit import CHART_TILE, chart_image
 
@@ -355,7 +356,7 @@ def simulate_patches(profile, neutrals, chart_srgb=None, *, recipe: str = "dng",
     colours = np.tile(colours, (h // 2, w // 2))
     run = jax.jit(lambda keys, images, n: unprocess_batch(
         keys, images, profile, neutral=n, exposure_gain=1.0, noise=noise, effects=False,
-        quantize=False, recipe=recipe, transfer=transfer)[0])
+        quantize=False, recipe=recipe, transfer=transfer, content=False)[0])
     out = []
     batch = min(batch, len(neutrals))
     for start in range(0, len(neutrals), batch):

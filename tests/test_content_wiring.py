@@ -11,6 +11,7 @@ import pytest
 
 import g2r_jax
 from g2r_jax import content
+from g2r_jax.pipeline import without_content
 from g2r_jax.profile.editing import attach_spectral
 from g2r_jax.profile.schema import profile_from_dict, profile_to_dict, replace
 
@@ -20,7 +21,7 @@ def _image():
 
 
 def test_a_profile_without_a_content_model_converts_exactly_as_before():
-    profile = g2r_jax.load_profile("Canon600D")
+    profile = without_content(g2r_jax.load_profile("Canon600D"))
     assert profile.content is None and "content" not in profile_to_dict(profile)
     key = jax.random.PRNGKey(3)
     plain, _ = g2r_jax.unprocess(key, _image(), profile)
@@ -32,7 +33,7 @@ def test_a_profile_without_a_content_model_converts_exactly_as_before():
 
 
 def test_the_content_model_changes_the_mosaic_when_on():
-    profile = g2r_jax.load_profile("Canon600D")
+    profile = without_content(g2r_jax.load_profile("Canon600D"))
     key = jax.random.PRNGKey(3)
     plain, _ = g2r_jax.unprocess(key, _image(), profile)
     on_by_default = replace(profile, content=content.content_model(0.3, apply_by_default=True))
@@ -52,7 +53,7 @@ def test_folded_content_model_equals_the_transform_of_the_pixels(colour, family)
     """A linear model folded into the colour matrix (no pass over the pixels) gives the mosaic of
     the image transformed first ('cast': a diagonal matrix of each image's gains); 'chroma_tone'
     (not linear) and the Jakob-Hanika stage (not a matrix) take the transform on the pixels."""
-    profile = g2r_jax.load_profile("Canon600D")
+    profile = without_content(g2r_jax.load_profile("Canon600D"))
     if colour != "matrix":
         profile = attach_spectral(profile)
     model = content.content_model(0.35, 1.3 if family == "chroma_tone" else 1.0, family=family,
@@ -146,14 +147,33 @@ def test_fit_profile_stores_the_cast_model_on_and_convert_follows_the_flags(tmp_
     assert "content_model" not in manifest("on1") and "content_model" not in manifest("off0")
 
 
-def test_convert_content_model_on_a_shipped_profile_uses_the_prior_and_says_so(tmp_path, capsys):
+def test_a_shipped_profile_applies_its_content_model_by_default(tmp_path):
     from g2r_jax.cli import convert
 
-    assert convert.main(["--example", "--profile", "Canon600D", "-o", str(tmp_path / "plain"), "--quiet"]) == 0
-    assert convert.main(["--example", "--profile", "Canon600D", "-o", str(tmp_path / "cast"), "--content-model"]) == 0
+    def converted(flags, name):
+        assert convert.main(["--example", "--profile", "Canon600D", "-o", str(tmp_path / name), "--quiet"] + flags) == 0
+        return (tmp_path / name / "colour_checker_scene.dng").read_bytes()
+
+    default, forced, off = converted([], "default"), converted(["--content-model"], "on"), converted(
+        ["--no-content-model"], "off")
+    assert default == forced != off
+    manifest = json.loads((tmp_path / "default" / "manifest.jsonl").read_text().splitlines()[0])
+    assert manifest["content_model"].startswith("cast, ")
+
+
+def test_convert_content_model_on_a_profile_without_one_uses_the_prior_and_says_so(tmp_path, capsys):
+    from g2r_jax.cli import convert
+    from g2r_jax.profile.schema import save_profile
+
+    profile = without_content(g2r_jax.load_profile("Canon600D"))
+    save_profile(profile, tmp_path / "plain.json")
+    assert convert.main(["--example", "--profile", str(tmp_path / "plain.json"), "-o", str(tmp_path / "plain"),
+                         "--quiet"]) == 0
+    assert convert.main(["--example", "--profile", str(tmp_path / "plain.json"), "-o", str(tmp_path / "cast"),
+                         "--content-model"]) == 0
     err = capsys.readouterr().err
     assert "no content model: using the prior of real scenes'" in err and "content model: cast" in err
     name = "colour_checker_scene.dng"
     assert (tmp_path / "plain" / name).read_bytes() != (tmp_path / "cast" / name).read_bytes()
-    model = content.prior_cast_model(g2r_jax.load_profile("Canon600D").colour)
+    model = content.prior_cast_model(profile.colour)
     assert model.family == "cast" and "NUS" in model.source

@@ -36,7 +36,7 @@ def round_trip_delta_E(tmp_path, profile_path, cct):
     csv.write_text(f"r_over_g,g,b_over_g\n{neutral[0]:.9f},1,{neutral[2]:.9f}\n")
     out = tmp_path / f"out_{cct}"
     status = convert_main([str(folder), "--profile", str(profile_path), "-o", str(out), "--no-noise",
-                           "--illuminants", str(csv), "--no-progress"])
+                           "--illuminants", str(csv), "--no-progress", "--no-content-model"])
     assert status == 0
     dng_path = out / "patches.dng"
     info = read_dng_info(dng_path)

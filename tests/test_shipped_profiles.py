@@ -70,6 +70,37 @@ def test_shipped_profile_is_a_measured_camera(name):
         assert f"    {part}: " in listing
 
 
+NUS_SHIPPED = ("Canon600D", "NikonD40", "NikonD5200", "OlympusEPL6", "PanasonicGX1", "SonyA57")
+
+
+@pytest.mark.parametrize("name", shipped_profiles())
+def test_shipped_profile_carries_the_prior_cast_model_applied_by_default(name):
+    """Out of the box a shipped profile converts CG frames as a fitted one does (issue 33): the
+    prior's 'cast' model through its own matrices; a NUS camera's within the spread of the nine
+    cameras' medians of the all-camera prior (its own scenes are left out of it)."""
+    from g2r_jax.content import prior_cast_model
+
+    profile = load_profile(name)
+    model = profile.content
+    assert model is not None and model.family == "cast" and model.apply_by_default
+    assert float(model.cast_scale) == 0.0
+    expected = np.asarray(prior_cast_model(profile.colour).cast_target)
+    tolerance = 0.05 if name in NUS_SHIPPED else 1e-6
+    assert np.allclose(np.asarray(model.cast_target), expected, atol=tolerance), (name, model.cast_target, expected)
+
+
+@pytest.mark.data
+@pytest.mark.parametrize("name", NUS_SHIPPED)
+def test_nus_profile_cast_target_leaves_its_own_scenes_out(name, shared_data):
+    from g2r_jax.content import prior_cast_model
+    from g2r_jax.content.prior import real_scenes_without
+
+    profile = load_profile(name)
+    own_left_out = prior_cast_model(profile.colour, real_scenes_without(shared_data, name))
+    assert np.allclose(np.asarray(profile.content.cast_target), np.asarray(own_left_out.cast_target), atol=1e-6)
+    assert f"{name}'s own left out" in _document(name)["provenance"]["content"]
+
+
 def test_listing_flags_a_noise_free_profile():
     document = _document(shipped_profiles()[0])
     document["noise"] = {"iso": [100.0], "shot": [[0.0] * 4], "read": [[0.0] * 4], "iso_range": [100.0, 100.0]}

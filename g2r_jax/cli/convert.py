@@ -55,9 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-effects", action="store_true", help="do not add the profile's sensor effects")
     content = parser.add_mutually_exclusive_group()
     content.add_argument("--content-model", action="store_true",
-                         help="apply the profile's content model (fitted by g2r-fit-profile) even where the "
-                              "profile leaves it off; a profile without one (the shipped ones) gets the 'cast' "
-                              "model of the prior of real scenes")
+                         help="apply the profile's content model (shipped profiles and g2r-fit-profile's carry "
+                              "one, on by default) even where the profile leaves it off; a profile without one "
+                              "gets the 'cast' model of the prior of real scenes")
     content.add_argument("--no-content-model", action="store_true",
                          help="do not apply the profile's content model")
     parser.add_argument("--illuminants", type=Path, metavar="CSV",
