@@ -19,12 +19,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 import highlights as hl  # noqa: E402
 
 from g2r_jax.profile.schema import load_profile  # noqa: E402
-from g2r_jax.pipeline import unprocess  # noqa: E402
+from g2r_jax.pipeline import unprocess, without_content  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def profile():
-    return load_profile("Canon600D")
+    return without_content(load_profile("Canon600D"))   # grey in, grey out: no CG content model
 
 
 @pytest.mark.parametrize("cct", [2900.0, pytest.param(6500.0, marks=pytest.mark.slow)])

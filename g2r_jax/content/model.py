@@ -165,38 +165,43 @@ def mean_grid(x):
     return x[..., ::step, ::step, :]
 
 
-_MEAN_BITS = 14   # the channel means' fixed point: the largest is 2^14, the rest to 2^-14 of it
-_LUMINANCE_1024 = np.round(np.asarray(LUMINANCE) * 1024).astype(np.int32)   # (218, 732, 74), sum 1024
+_LUMINANCE_2_15 = np.round(np.asarray(LUMINANCE) * 2 ** 15).astype(np.int32)   # sums to 2^15
 
 
 def _image_mean(x):
-    """Mean colour of `mean_grid(x)` (..., 1, 1, C) as integers, the largest channel 2^14 (the
-    cast gains use only ratios of the channel means). Integer arithmetic where rounding could
-    depend on the compiled program: a float sum's order, and whether a product and a sum fuse,
-    change with the batch and its sharding over devices, and a last-bit change of a gain moved a
-    pixel by 1 DN between a batch converted whole and the same batch sharded. The pixels are
-    summed in int32 fixed point (count x 2^bits <= 2^30: exact), then scaled by one quotient."""
+    """Mean colour of `mean_grid(x)` (..., 1, 1, C) up to a positive factor (the cast gains use
+    only ratios of the channel means), as int32 sums of the pixels in fixed point (count x 2^bits
+    <= 2^30: exact). Exact, so that it does not depend on the order of the sum, which changes with
+    the batch and its sharding over devices: a last-bit change of a gain moved a pixel by 1 DN
+    between a batch converted whole and the same batch sharded."""
     grid = mean_grid(x)
     count = grid.shape[-3] * grid.shape[-2]
     bits = 30 - max(0, int(np.ceil(np.log2(count))))
     peak = jnp.max(jnp.abs(grid), axis=(-3, -2, -1), keepdims=True)
     peak = jnp.where(jnp.isfinite(peak) & (peak > 0), peak, 1.0)
     fixed = jnp.round(jnp.clip(grid / peak, -1.0, 1.0) * (2.0 ** bits)).astype(jnp.int32)
-    sums = jnp.maximum(jnp.sum(fixed, axis=(-3, -2), keepdims=True), 0).astype(jnp.float32)
-    largest = jnp.max(sums, axis=-1, keepdims=True)
-    scaled = sums / jnp.where(largest > 0, largest, 1.0) * (2.0 ** _MEAN_BITS)
-    return jnp.round(scaled).astype(jnp.int32)
+    return jnp.maximum(jnp.sum(fixed, axis=(-3, -2), keepdims=True), 0)
+
+
+def _exact_luminance(sums):
+    """Y of `_image_mean`'s int32 sums (..., 3) -> float32 (..., 1): the weighted sum in integers
+    (weights `_LUMINANCE_2_15`, each sum split into 15-bit halves so that no product overflows),
+    so that no product and sum can fuse differently in differently compiled programs; the two
+    halves meet in one float addition."""
+    weights = jnp.asarray(_LUMINANCE_2_15)
+    high = jnp.sum((sums >> 15) * weights, axis=-1, keepdims=True)
+    low = jnp.sum((sums & 0x7FFF) * weights, axis=-1, keepdims=True)
+    return (high.astype(jnp.float32) * 2.0 ** 15 + low.astype(jnp.float32)) * 2.0 ** -15
 
 
 def _cast_gains(x, model: ContentModel):
-    """(Y_m t_k / m_k)^(1 - c) per image (`_image_mean`), shaped to multiply `x`; a channel whose
-    mean is 0 keeps its gain 1. Y_m in integers (weights `_LUMINANCE_1024`), then one product and
-    one quotient per channel: no step whose rounding depends on the compiled program."""
-    mean = _image_mean(x)
-    luminance = jnp.sum(mean * jnp.asarray(_LUMINANCE_1024), axis=-1, keepdims=True).astype(jnp.float32)
-    wanted = luminance * jnp.asarray(model.cast_target, jnp.float32) / 1024.0
-    positive = mean > 0
-    ratio = jnp.where(positive, wanted / jnp.where(positive, mean, 1).astype(jnp.float32), 1.0)
+    """(Y_m t_k / m_k)^(1 - c) per image (`_image_mean`, `_exact_luminance`), shaped to multiply
+    `x`; a channel whose mean is 0 keeps its gain 1. After the exact sums, one product and one
+    quotient per channel: nothing whose rounding depends on how the program was compiled."""
+    sums = _image_mean(x)
+    mean = sums.astype(jnp.float32)
+    wanted = _exact_luminance(sums) * jnp.asarray(model.cast_target, jnp.float32)
+    ratio = jnp.where(mean > 0, wanted / jnp.where(mean > 0, mean, 1.0), 1.0)
     kept = jnp.asarray(model.cast_scale, jnp.float32)
     # c = 0 (the default) takes the ratio itself: a power's last bit can differ between a program
     # vectorised over a batch and one of a single image.
