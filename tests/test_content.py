@@ -236,3 +236,22 @@ def test_prior_numbers_are_those_of_the_data(shared_data):
     for key in ("chroma_spread", "brightness", "cast_red", "cast_blue"):
         assert prior.REAL_SCENES["medians"][key] == pytest.approx(real[key], rel=1e-3)
         assert prior.REFERENCE_CG["medians"][key] == pytest.approx(cg[key], rel=1e-3)
+
+
+def test_leaving_a_camera_out_of_the_prior_names_a_camera_it_does_not_know(tmp_path):
+    with pytest.raises(ValueError, match="'GoProHero6' is not a NUS camera"):
+        prior.real_scenes_without(tmp_path, "GoProHero6")
+
+
+@pytest.mark.data
+def test_a_camera_left_out_of_the_prior_moves_its_cast_target_little(shared_data):
+    """The median of the other eight cameras' medians lies within the nine cameras' spread of the
+    prior (CAST_SPREAD's between-camera sd, twice) and differs from it for some camera."""
+    moved = []
+    for camera in ("PanasonicGX1", "SonyA57"):
+        left_out = prior.real_scenes_without(shared_data, camera)
+        for key in ("cast_red", "cast_blue"):
+            shift = abs(left_out[key] - prior.REAL_SCENES["medians"][key])
+            assert shift <= 2 * prior.CAST_SPREAD[key]["between_cameras"], (camera, key, shift)
+            moved.append(shift)
+    assert max(moved) > 1e-4

@@ -121,7 +121,8 @@ def test_fit_profile_stores_the_cast_model_on_and_convert_follows_the_flags(tmp_
     dngs = tmp_path / "dngs"
     assert convert.main(["--example", "--profile", "gopro_hero6", "-o", str(dngs), "--quiet"]) == 0
     assert fit_profile.main([str(dngs), "-o", str(tmp_path / "cam.json")]) == 0
-    assert "content model: cast" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "content model: cast" in said and "from 1 file(s)' scenes (weight 1%/2% red/blue, the rest the prior" in said
     block = json.loads((tmp_path / "cam.json").read_text())["content"]
     assert block["family"] == "cast" and block["apply_by_default"] is True and "1 DNG file(s)" in block["source"]
     assert block["cast_scale"] == 0.0 and len(block["cast_target"]) == 3

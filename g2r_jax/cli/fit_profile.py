@@ -322,6 +322,7 @@ def _with_content_model(profile, infos, args):
     and applied by default (docs/pages/validation/content_model.md: it lowered the error of both
     estimators on all nine NUS cameras)."""
     from g2r_jax.content import content_model_from_files, describe, with_default
+    from g2r_jax.content.fitting import files_weight
     from g2r_jax.io.dng_read import read_dng_pixels
     from g2r_jax.profile.fitting import as_shot_neutral
     from g2r_jax.profile.schema import replace
@@ -344,8 +345,10 @@ def _with_content_model(profile, infos, args):
         if model is None:
             print(f"g2r-fit-profile: note: no content model ({skipped_reason})")
         else:
-            print(f"g2r-fit-profile: content model: {describe(model)}, from {used} file(s)' scenes; applied by "
-                  "default (g2r-convert --no-content-model turns it off)"
+            weights = "/".join(f"{files_weight(name, used):.0%}" for name in ("cast_red", "cast_blue"))
+            print(f"g2r-fit-profile: content model: {describe(model)}, from {used} file(s)' scenes (weight "
+                  f"{weights} red/blue, the rest the prior of real scenes); applied by default "
+                  "(g2r-convert --no-content-model turns it off)"
                   + (f"; {len(skipped)} file(s) too small or without a neutral" if skipped else ""))
     return profile if model is None else replace(profile, content=model)
 

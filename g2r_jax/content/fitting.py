@@ -128,11 +128,16 @@ def _toward_the_prior(real: dict, stats) -> dict:
     1.7 % (blue), 150 files 52 % and 72 %. One scene's cast is not the camera's."""
     out = {}
     for name, value in real.items():
-        n = int(np.isfinite(stats.values[name]).sum())
-        spread = _prior.CAST_SPREAD[name]
-        weight = n / (n + 0.5 * np.pi * (spread["per_image"] / spread["between_cameras"]) ** 2)
+        weight = files_weight(name, int(np.isfinite(stats.values[name]).sum()))
         out[name] = weight * value + (1.0 - weight) * _prior.REAL_SCENES["medians"][name]
     return out
+
+
+def files_weight(name: str, n: int) -> float:
+    """The weight of n files' median `name` ('cast_red' or 'cast_blue') against the prior's in the
+    'cast' target (`_toward_the_prior`): n / (n + (pi / 2) s^2 / t^2)."""
+    spread = _prior.CAST_SPREAD[name]
+    return n / (n + 0.5 * np.pi * (spread["per_image"] / spread["between_cameras"]) ** 2)
 
 
 def _cast_model(real_statistics, to_camera) -> ContentModel:
