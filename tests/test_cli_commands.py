@@ -122,7 +122,8 @@ def test_list_profiles_says_what_each_profile_is(capsys):
     assert sorted(lines[k].split()[0] for k in heads) == names
     gopro = next(k for k in heads if lines[k].startswith("gopro_hero6 "))
     assert "GoPro HERO6 Black" in lines[gopro] and "ISO 100-100" in lines[gopro]
-    assert [line.split(":")[0].strip() for line in lines[gopro + 1:gopro + 4]] == ["colour", "noise", "illuminants"]
+    assert [line.split(":")[0].strip() for line in lines[gopro + 1:gopro + 5]] == ["colour", "noise", "illuminants",
+                                                                                  "content"]
 
 
 def test_a_profile_argument_is_a_shipped_name_unless_it_is_a_file(tmp_path, monkeypatch):

@@ -66,8 +66,9 @@ def test_shipped_profile_is_a_measured_camera(name):
     low, high = np.asarray(profile.noise.iso_range)
     assert listing.startswith(f"{name}  {profile.info.unique_camera_model}, ISO {low:g}-{high:g}")
     assert "NO NOISE MODEL" not in listing
-    for part in ("colour", "noise", "illuminants"):
+    for part in ("colour", "noise", "illuminants", "content"):
         assert f"    {part}: " in listing
+    assert "    content: cast, each frame's mean colour" in listing and "applied by default" in listing
 
 
 NUS_SHIPPED = ("Canon600D", "NikonD40", "NikonD5200", "OlympusEPL6", "PanasonicGX1", "SonyA57")

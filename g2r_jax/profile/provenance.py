@@ -2,9 +2,9 @@
 
 A profile document's `provenance` is either one readable text (older profiles, fitted ones) or an
 object with one text per part: `colour` (matrices), `levels` (CFA, black and white levels), `noise`,
-`illuminants`, `exposure`, `content` (the CG content model). The first sentence of each part is its summary (what
-`describe_profile` prints); the rest says how the numbers were derived. Plain JSON and text, no JAX,
-so a command can list profiles without the numerical stack.
+`illuminants`, `exposure`, `content` (the CG content model). The first sentence of each part is its
+summary (what `describe_profile` prints); the rest says how the numbers were derived. Plain JSON
+and text, no JAX, so a command can list profiles without the numerical stack.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 
 PARTS = ("colour", "levels", "noise", "illuminants", "exposure", "content")
-LISTED_PARTS = ("colour", "noise", "illuminants")
+LISTED_PARTS = ("colour", "noise", "illuminants", "content")
 
 
 def split_provenance(value) -> tuple[str, tuple]:
@@ -63,8 +63,8 @@ def summary(text: str) -> str:
 
 def describe_profile(document: dict) -> str:
     """The `g2r-convert --list-profiles` entry of one profile document: its name, camera and ISO
-    range, then where its colour, noise and illuminants come from (first sentence of each
-    provenance part). A profile without noise says so: its conversions are noise-free.
+    range, then where its colour, noise and illuminants come from and its content model (first
+    sentence of each provenance part). A profile without noise says so: its conversions are noise-free.
 
     **Returns:** a few lines of text (no trailing newline)."""
     name = document.get("name", "?")
