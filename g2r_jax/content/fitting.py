@@ -19,8 +19,6 @@ Without real images the real medians come from the prior of real scenes
 
 from __future__ import annotations
 
-import dataclasses
-
 import jax
 import numpy as np
 
@@ -140,11 +138,12 @@ def files_weight(name: str, n: int) -> float:
     return n / (n + 0.5 * np.pi * (spread["per_image"] / spread["between_cameras"]) ** 2)
 
 
-def _cast_model(real_statistics, to_camera) -> ContentModel:
+def _cast_model(real_statistics, to_camera, what: str = "real images") -> ContentModel:
     """'cast': the target colour is the real images' median grey-world cast (shrunk toward the
     prior's by their number, `_toward_the_prior`), exp(cast_red), 1, exp(cast_blue) in the
-    camera's white-balanced RGB, taken to linear sRGB by to_camera^-1."""
-    real, source = _medians(real_statistics, _prior.REAL_SCENES, "real images", ("cast_red", "cast_blue"))
+    camera's white-balanced RGB, taken to linear sRGB by to_camera^-1; `what` names a dict of
+    medians in the model's source."""
+    real, source = _medians(real_statistics, _prior.REAL_SCENES, what, ("cast_red", "cast_blue"))
     if isinstance(real_statistics, ContentStatistics):
         real = _toward_the_prior(real, real_statistics)
     if not all(np.isfinite(v) for v in real.values()):
@@ -170,8 +169,4 @@ def prior_cast_model(colour_model, real_medians: dict | None = None, source: str
     from g2r_jax.content.real_images import srgb_to_camera_matrices
 
     neutral = np.asarray(xy_to_camera_neutral(jnp.asarray([0.3127, 0.3290]), colour_model), np.float64)
-    to_camera = srgb_to_camera_matrices(neutral[None], colour_model)[0]
-    if real_medians is None:
-        return fit_content_model(None, family="cast", to_camera=to_camera)
-    model = _cast_model({k: real_medians[k] for k in ("cast_red", "cast_blue")}, to_camera)
-    return dataclasses.replace(model, source=model.source.replace("real images", source or "given medians", 1))
+    return _cast_model(real_medians, srgb_to_camera_matrices(neutral[None], colour_model)[0], source or "given medians")
