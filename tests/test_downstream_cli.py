@@ -70,6 +70,56 @@ def test_check_runs_names_bad_files_and_writes_the_report(camera_folders, tmp_pa
     assert not list(report.glob("*.tmp"))
 
 
+class _Recorder:
+    """A progress receiver like `downstream.progress.Progress`: keeps the lines, the planned and the done units."""
+
+    def __init__(self):
+        self.lines, self.planned, self.done, self.doing = [], 0, 0, []
+
+    def __call__(self, line):
+        self.lines.append(line)
+
+    def plan(self, units):
+        self.planned += units
+
+    def advance(self, units=1, doing=""):
+        self.done += units
+        self.doing.append(doing)
+
+
+def test_the_default_check_measures_the_product_and_plans_every_training(camera_folders):
+    """Without a profile, the g2r_jax row is the profile g2r-fit-profile makes (lights and a content
+    model fitted on the training folds only), the model-free row a control, and the sentence says
+    both; the progress receives as many units as it was told to expect (its time left is right)."""
+    from g2r_jax.downstream import experiment, run_check
+
+    dngs, cg = camera_folders
+    progress = _Recorder()
+    result = run_check([dngs], [cg], estimators=("moments",), seeds=1, n=64, folds=2, progress=progress)
+    assert {"fitted", "fitted_no_content", "single"} <= set(result.result.rows) and "shipped" not in result.result.rows
+    assert progress.planned == progress.done == experiment.trainings(result.result.rows, ("moments",), (0,), 2)
+    assert any("fold 2, fitted_no_content, moments" in d for d in progress.doing)
+    assert sum("content model of the g2r_jax rows, seed 0, fold" in n for n in result.result.notes) == 2
+    sentence = result.sentences[0]
+    assert "as g2r-fit-profile makes it" in sentence and "the content model" in sentence
+    assert "without it" in sentence and result.document["decomposition"]["moments"]["content_model"] is not None
+
+
+def test_the_progress_bar_shows_the_time_left(capsys):
+    import io
+
+    from g2r_jax.downstream.progress import Progress
+
+    stream = io.StringIO()
+    lines = []
+    with Progress(lines.append, stream=stream, desc="check") as progress:
+        progress.plan(4)
+        progress.advance(1, "fold 1")
+        progress("a line")
+        progress.advance(3)
+    assert lines == ["a line"] and "left" in stream.getvalue() and "trainings" in stream.getvalue()
+
+
 @pytest.mark.slow
 def test_burst_check_adds_denoising_and_names_a_frame_it_cannot_use(camera_folders, tmp_path, capsys):
     from g2r_jax.downstream.bursts import write_synthetic_burst

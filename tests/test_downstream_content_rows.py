@@ -68,7 +68,7 @@ def test_the_rows_model_is_fitted_to_the_training_folds_only(monkeypatch):
     monkeypatch.setattr(estimators, "train_estimator",
                         lambda name, x, y, seed=0: (lambda test: np.tile(y.mean(0), (len(test), 1))))
     _fake_sets(monkeypatch, [])
-    result = experiment.illuminant_experiment(real, profile, _cg(), rows=("content", "upi_content"),
+    result = experiment.illuminant_experiment(real, profile, _cg(), rows=("fitted", "upi_content"),
                                               estimators=("moments",), seeds=(0, 1), n=50, folds=2,
                                               illuminant_model="prior")
     tests = folds_of(len(real.images), 2, 0, groups=real.groups)
@@ -76,8 +76,8 @@ def test_the_rows_model_is_fitted_to_the_training_folds_only(monkeypatch):
     for k, (name, seen) in enumerate(fitted_to):
         assert name == content_rows.FITTED
         assert seen == set(range(len(real.images))) - set(tests[k % 2].tolist())
-    assert sum("content rows, seed" in note and "cast" in note for note in result.notes) == 4
-    assert {row for row, _ in result.errors} == {"content", "upi_content"}
+    assert sum("content model of the g2r_jax rows, seed" in note and "cast" in note for note in result.notes) == 4
+    assert {row for row, _ in result.errors} == {"fitted", "upi_content"}
 
 
 def test_the_benchmarks_selection_never_sees_the_test_fold(monkeypatch):
@@ -149,7 +149,7 @@ def test_a_profiles_own_content_model_is_used_as_given(monkeypatch, by_default):
     monkeypatch.setattr(content_rows, "select_candidate", no_selection)
     monkeypatch.setattr(estimators, "train_estimator",
                         lambda name, x, y, seed=0: (lambda test: np.tile(y.mean(0), (len(test), 1))))
-    result = experiment.illuminant_experiment(real, profile, _cg(), rows=("content", "upi_content"),
+    result = experiment.illuminant_experiment(real, profile, _cg(), rows=("fitted", "upi_content"),
                                               estimators=("moments",), seeds=(0,), n=50, folds=2)
     views = training_sets.cg_views(_cg(), 50, 0)
     expected = np.asarray(apply(model, views))
@@ -162,15 +162,16 @@ def test_a_profiles_own_content_model_is_used_as_given(monkeypatch, by_default):
     np.testing.assert_allclose(upi_calls[0][1], training_sets.linear_to_srgb_views(expected), atol=1e-6)
     assert not np.allclose(expected, views, atol=1e-3)
     assert any("used as given" in note and "0.35" in note for note in result.notes)
-    assert any("carry it too" in note for note in result.notes) == by_default
+    assert any("carries it too" in note for note in result.notes) == by_default
 
 
 def test_content_rows_are_not_default_and_an_unknown_row_is_refused_by_name(tmp_path):
     from g2r_jax.downstream import default_rows, run_check
 
     assert not set(experiment.CONTENT_ROWS) & set(default_rows(True))
-    assert default_rows(True, content_rows=True)[-2:] == ("content", "upi_content")
-    assert set(content_rows.BUILDERS) == set(experiment.CONTENT_ROWS) <= set(experiment.ROWS)
+    assert {"fitted", "fitted_no_content", "single"} <= set(default_rows(False))   # the product and its control
+    assert default_rows(True, content_rows=True)[-1:] == ("upi_content",)
+    assert set(experiment.CONTENT_ROWS) < set(content_rows.BUILDERS) <= set(experiment.ROWS)
     with pytest.raises(ValueError, match="'contnet'"):
         run_check([tmp_path], [tmp_path], rows=("fitted", "contnet"))   # before any file is read
     real, profile = _real_set()
@@ -217,13 +218,13 @@ def test_g2r_downstream_reports_the_content_rows(camera_folders, tmp_path, capsy
     out, err = capsys.readouterr()
     assert status == 0, err
     document = json.loads((report / "report.json").read_text())
-    assert document["rows"][-2:] == ["content", "upi_content"]
-    for row in ("fitted", "content", "upi", "upi_content"):
+    assert document["rows"][-1:] == ["upi_content"]
+    for row in ("fitted", "fitted_no_content", "upi", "upi_content"):
         assert np.isfinite(document["summary"][f"{row}/moments"]["mean"])
-    assert sum("content rows, seed 0, fold" in note for note in document["notes"]) == 2
+    assert sum("content model of the g2r_jax rows, seed 0, fold" in note for note in document["notes"]) == 2
     page = (report / "report.md").read_text()
-    assert experiment.ROWS["content"] in page and experiment.ROWS["upi_content"] in page
-    assert "content rows, seed 0, fold 1: cast" in page
+    assert experiment.ROWS["fitted"] in page and experiment.ROWS["upi_content"] in page
+    assert "content model of the g2r_jax rows, seed 0, fold 1: cast" in page
 
 
 @pytest.mark.slow
@@ -248,19 +249,20 @@ def test_the_library_rows_give_the_benchmarks_figures(shared_data, monkeypatch):
     frames = [np.asarray(Image.open(p).convert("RGB")) for p in sorted((shared_data / "cg" / "carla").glob("*.png"))]
     real = real_sets.load_nus(shared_data / "estimation" / "nus" / "Canon600D.npz")
     result = experiment.illuminant_experiment(real, bench.camera_profile("Canon600D"), frames,
-                                              rows=("fitted", "content", "upi", "upi_content", "real"),
+                                              rows=("fitted_no_content", "fitted", "upi", "upi_content", "real"),
                                               estimators=("moments",), seeds=(0,), n=40, folds=3)
-    for row, benchmark_row in (("fitted", "fitted"), ("content", "fitted+content"), ("upi", "upi"),
+    for row, benchmark_row in (("fitted_no_content", "fitted"), ("fitted", "fitted+content"), ("upi", "upi"),
                                ("upi_content", "upi+content"), ("real", "real")):
         np.testing.assert_allclose(result.errors[(row, "moments")][0], ran["errors"][f"{benchmark_row}/moments"][0],
                                    rtol=1e-6, err_msg=row)
     assert [c["family"] for c in ran["chosen"]] == [content_rows.FITTED] * 3
-    assert sum("content rows, seed 0, fold" in note for note in result.notes) == 3
+    assert sum("content model of the g2r_jax rows, seed 0, fold" in note for note in result.notes) == 3
 
 
 def test_a_profile_that_applies_its_model_keeps_it_off_the_real_content_controls(monkeypatch):
-    """A fitted profile applies its 'cast' model by default: the CG rows carry it, the controls
-    (real scenes made RAW again) never do."""
+    """A fitted profile applies its 'cast' model by default: the CG rows carry it ('fitted' on
+    views adapted once, 'shipped' in the simulation), the controls (real scenes made RAW again)
+    never do."""
     from g2r_jax.content import content_model
     from g2r_jax.profile.schema import replace
 
@@ -270,10 +272,15 @@ def test_a_profile_that_applies_its_model_keeps_it_off_the_real_content_controls
     _fake_sets(monkeypatch, calls)
     monkeypatch.setattr(estimators, "train_estimator",
                         lambda name, x, y, seed=0: (lambda test: np.tile(y.mean(0), (len(test), 1))))
-    rows = ("fitted", "real_own_light", "real_other_light", "real_profile_light")
+    rows = ("fitted", "shipped", "real_own_light", "real_other_light", "real_profile_light")
     experiment.illuminant_experiment(real, profile, _cg(), rows=rows, estimators=("moments",), seeds=(0,), n=50,
                                      folds=2, illuminant_model="prior")
-    simulated = [c[2] for c in calls if c[0] == "g2r"]
-    assert len(simulated) == 2 * len(rows)                        # one set per row and fold
-    with_model = [p for p in simulated if p.content is not None]
-    assert len(with_model) == 2 and all(p.content.family == "cast" for p in with_model)   # the 'fitted' row
+    g2r_calls = [c for c in calls if c[0] == "g2r"]
+    assert len(g2r_calls) == 2 * len(rows) - 1                    # one set per row and fold; 'shipped' once per seed
+    with_model = [c for c in g2r_calls if c[2].content is not None]
+    assert len(with_model) == 1 and with_model[0][2].content.family == "cast"    # the 'shipped' row
+    views = training_sets.cg_views(_cg(), 50, 0)
+    expected = np.asarray(content_rows.adapted_views(profile.content, views))
+    assert not np.allclose(expected, views, atol=1e-3)
+    adapted = [c for c in g2r_calls if c[1].shape == views.shape and np.allclose(c[1], expected, atol=1e-5)]
+    assert len(adapted) == 2                                      # the 'fitted' row, once per fold

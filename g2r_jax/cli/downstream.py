@@ -28,7 +28,8 @@ LIMITS = {"seeds": (1, 100), "n": (50, 100_000), "folds": (2, 50), "denoiser_ste
 def _parser() -> argparse.ArgumentParser:
     parser = command_parser(
         "g2r-downstream",
-        "Train illuminant estimators on synthetic RAW made from your CG images (g2r_jax and UPI), on "
+        "Train illuminant estimators on synthetic RAW made from your CG images (g2r_jax as "
+        "g2r-fit-profile makes it, without its content model as a control, and UPI), on "
         "your real DNGs (cross-validated) and on controls; test them on your real DNGs (labelled by "
         "their AsShotNeutral, the camera's own white balance) and say how much of the gap to real "
         "training is the profile and how much the CG content. With --burst, also (or only) the "
@@ -45,7 +46,8 @@ def _parser() -> argparse.ArgumentParser:
                              "128 pixels on its shorter side")
     parser.add_argument("--profile", metavar="NAME|FILE",
                         help="the camera's sensor profile (default: fitted from the measured DNGs, or the burst's, "
-                             "as g2r-fit-profile would; its lights are refitted per fold)")
+                             "as g2r-fit-profile would, with its content model fitted per fold on the training "
+                             "folds; a given profile's lights are refitted per fold, its content model kept)")
     parser.add_argument("--burst", metavar="DNG_DIR",
                         help="the denoising check: a folder of DNGs of one static scene (>= 3 frames); alone, "
                              "or with --measured and --cg")
@@ -58,11 +60,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--n", type=int, default=600, help="synthetic training images per set")
     parser.add_argument("--folds", type=int, default=3, help="cross-validation folds of the real files")
     parser.add_argument("--content-rows", action="store_true",
-                        help="add two rows: g2r_jax with the lights fitted and a content model on the CG images, "
-                             "and UPI on the same adapted images (2 more training sets per fold and seed, each "
-                             "trained with every estimator). The model is the profile's own if it has one, else "
-                             "chosen per fold on the training folds only, by 3 more moments estimators per fold "
-                             "and seed (identity, chroma scale 0.5, 0.35)")
+                        help="add a row: UPI on the same content-adapted CG images as the g2r_jax row (one more "
+                             "training set per fold and seed, trained with every estimator): g2r_jax's lead over "
+                             "UPI on equal content")
     parser.add_argument("--max-megapixels", type=float, default=100.0, metavar="MPX",
                         help="refuse CG images larger than this (0: no limit)")
     parser.add_argument("--dry-run", action="store_true",
@@ -168,17 +168,25 @@ def check_arguments(args) -> str | None:
 
 def _run(args) -> int:
     from g2r_jax.downstream import default_rows, run_check, write_report
+    from g2r_jax.downstream.progress import Progress
 
-    say = None if args.quiet else (lambda message: print(f"g2r-downstream: {message}", file=sys.stderr))
+    def line(message):
+        print(f"g2r-downstream: {message}", file=sys.stderr)
+
+    say = None if args.quiet else Progress(line, desc="g2r-downstream", bar=not args.dry_run)
 
     def bad(path, reason):
-        print(f"g2r-downstream: error: {one_line(f'{path}: {reason}')}", file=sys.stderr)
+        (say or line)(f"error: {one_line(f'{path}: {reason}')}")
 
-    result = run_check(args.measured or (), args.cg or (), burst=args.burst, profile=args.profile,
-                       estimators=tuple(args.estimators.split(",")), seeds=args.seeds, n=args.n, folds=args.folds,
-                       rows=default_rows(args.profile is not None, content_rows=True) if args.content_rows else None,
-                       denoiser_steps=args.denoiser_steps, dry_run=args.dry_run, progress=say, on_problem=bad,
-                       max_pixels=int(args.max_megapixels * 1e6) if args.max_megapixels > 0 else None)
+    try:
+        result = run_check(args.measured or (), args.cg or (), burst=args.burst, profile=args.profile,
+                           estimators=tuple(args.estimators.split(",")), seeds=args.seeds, n=args.n, folds=args.folds,
+                           rows=default_rows(args.profile is not None, content_rows=True) if args.content_rows else None,
+                           denoiser_steps=args.denoiser_steps, dry_run=args.dry_run, progress=say, on_problem=bad,
+                           max_pixels=int(args.max_megapixels * 1e6) if args.max_megapixels > 0 else None)
+    finally:
+        if say is not None:
+            say.close()
     if args.quiet:   # notes (files with the same pixels) matter for the result: said even when quiet
         for note in result.notes:
             print(f"g2r-downstream: note: {one_line(note)}", file=sys.stderr)

@@ -317,33 +317,20 @@ def body(args) -> int:
 
 
 def _with_content_model(profile, infos, args):
-    """The profile with the content model of its DNGs' scenes (`g2r_jax.content`, family 'cast':
-    each CG frame's grey-world cast taken to the median cast of these files), fitted without labels
+    """The profile with the content model of its DNGs' scenes (`g2r_jax.profile.fitting.content_model_of_dngs`:
+    each CG frame's colour cast taken to the median cast of these files), fitted without labels
     and applied by default (docs/pages/validation/content_model.md: it lowered the error of both
     estimators on all nine NUS cameras)."""
-    from g2r_jax.content import content_model_from_files, describe, with_default
+    from g2r_jax.content import describe
     from g2r_jax.content.fitting import files_weight
-    from g2r_jax.io.dng_read import read_dng_pixels
-    from g2r_jax.profile.fitting import as_shot_neutral
+    from g2r_jax.profile.fitting import content_model_of_dngs
     from g2r_jax.profile.schema import replace
 
-    def read(info):
-        return read_dng_pixels(info.path, info), info.cfa_pattern, info.black_level, info.white_level, as_shot_neutral(info)
-
     skipped = []
-    try:
-        model, used = content_model_from_files(infos, read, colour_model=profile.colour,
-                                               on_error=lambda info, problem: skipped.append(info.path))
-    except ValueError as error:    # e.g. a median cast outside sRGB at the files' light: no model, said
-        model, used = None, 0
-        skipped_reason = str(error)
-    else:
-        skipped_reason = "no file gave scene statistics"
-    if model is not None:
-        model = with_default(model, True)
+    model, used, reason = content_model_of_dngs(infos, profile.colour, on_error=lambda info, problem: skipped.append(info.path))
     if not args.quiet:
         if model is None:
-            print(f"g2r-fit-profile: note: no content model ({skipped_reason})")
+            print(f"g2r-fit-profile: note: no content model ({reason})")
         else:
             weights = "/".join(f"{files_weight(name, used):.0%}" for name in ("cast_red", "cast_blue"))
             print(f"g2r-fit-profile: content model: {describe(model)}, from {used} file(s)' scenes (weight "

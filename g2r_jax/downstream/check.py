@@ -18,17 +18,20 @@ DEFAULT_ESTIMATORS = ("cnn", "histogram")
 
 
 def default_rows(profile_given: bool, content_rows: bool = False) -> tuple:
-    """The experiment's rows: every default row, 'shipped' only when a profile was given (a
-    fitted profile has no light of its own to test), and with `content_rows` the content model's
-    two rows (`experiment.CONTENT_ROWS`, `downstream.content_rows`). Other rows
-    (`experiment.ROWS`) are passed to `run_check(rows=...)`."""
+    """The experiment's rows: every default row ('fitted', the product as `g2r-fit-profile` makes
+    it, with its controls), 'shipped' only when a profile was given (a fitted profile has no light
+    of its own to test), and with `content_rows` UPI on the product's adapted CG content
+    (`experiment.CONTENT_ROWS`, `downstream.content_rows`). Other rows (`experiment.ROWS`) are
+    passed to `run_check(rows=...)`."""
     rows = tuple(r for r in experiment.DEFAULT_ROWS if profile_given or r != "shipped")
     return rows + (experiment.CONTENT_ROWS if content_rows else ())
 
 
 def camera_profile(profile, inputs: Inputs):
     """`profile` (a SensorProfile, a shipped name or a file) loaded, or one fitted from the real
-    DNGs' tags as `g2r-fit-profile` would (from the burst's frames without real DNGs)."""
+    DNGs' tags as `g2r-fit-profile` would (from the burst's frames without real DNGs), without
+    its content model: the colour check fits that per fold (`downstream.content_rows`),
+    `with_files_content` adds the one of all the files."""
     from g2r_jax.io.dng_read import read_dng_info
     from g2r_jax.profile.fitting import fit_profile
     from g2r_jax.profile.schema import SensorProfile, load_profile
@@ -43,6 +46,34 @@ def camera_profile(profile, inputs: Inputs):
     return fit_profile(list(inputs.burst.infos), name="burst", illuminant_model="prior")
 
 
+def with_files_content(sensor, inputs: Inputs):
+    """A fitted `sensor` with the content model `g2r-fit-profile` fits to the same files (the real
+    DNGs, else the burst's frames): the product the burst check measures."""
+    from g2r_jax.io.dng_read import read_dng_info
+    from g2r_jax.profile.fitting import content_model_of_dngs
+    from g2r_jax.profile.schema import replace
+
+    infos = [read_dng_info(path) for path in inputs.real.files] if inputs.real is not None else list(inputs.burst.infos)
+    model, _, _ = content_model_of_dngs(infos, sensor.colour)
+    return sensor if model is None else replace(sensor, content=model)
+
+
+def _product_views(views, real, profile):
+    """CG views as the product sees them, for the comparison of contents: through the profile's
+    content model (applied in the simulation when it carries one), else through the one
+    `g2r-fit-profile` fits to the real files (`content_rows.FITTED`); as they are when the files'
+    cast cannot be fitted."""
+    from g2r_jax.downstream import content_rows
+
+    if getattr(profile, "content", None) is not None:
+        return views
+    try:
+        model = content_rows.candidate_model(content_rows.FITTED, real.images, real.illuminants, views, profile)
+    except ValueError:
+        return views
+    return content_rows.adapted_views(model, views)
+
+
 def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds, say) -> tuple:
     """(ExperimentResult, JSON part, sentences, markdown lines) of the colour check."""
     from g2r_jax.downstream.training_sets import cg_views, g2r_set, real_to_linear_srgb
@@ -51,7 +82,7 @@ def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds,
     result = experiment.illuminant_experiment(real, profile, inputs.cg, rows=rows, estimators=estimators,
                                               seeds=seeds, n=n, folds=folds, progress=say)
     fitted = experiment.fitted_illuminants(profile, real.illuminants)
-    synthetic = g2r_set(cg_views(inputs.cg, min(n, 300), 0), fitted, 0)
+    synthetic = g2r_set(_product_views(cg_views(inputs.cg, min(n, 300), 0), real, profile), fitted, 0)
     round_trip = g2r_set(real_to_linear_srgb(real.images, real.illuminants, profile),
                          experiment.without_content(profile), 0, neutrals=real.illuminants)
     differences = content.compare(synthetic, (real.images, real.illuminants), round_trip)
@@ -64,12 +95,29 @@ def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds,
     return result, document, sentences, markdown
 
 
+def _burst_contents(inputs: Inputs) -> tuple:
+    return ("cg", "scene") if inputs.cg_paths else ("scene",)
+
+
+def _plan(progress, inputs: Inputs, *, rows, estimators, seeds: int, folds: int, choose: bool) -> None:
+    """Tell `progress` (a `downstream.progress.Progress`) every training the check will run, so
+    that its time left covers the whole check."""
+    from g2r_jax.downstream import denoising
+    from g2r_jax.downstream.progress import plan
+
+    units = experiment.trainings(rows, estimators, range(seeds), folds) if inputs.real is not None else 0
+    if inputs.burst is not None:
+        units += denoising.trainings(inputs.burst.n, denoising.ROWS, _burst_contents(inputs), range(seeds),
+                                     choose=choose)
+    plan(progress, units)
+
+
 def _burst_check(inputs: Inputs, profile, *, seeds, steps, say) -> tuple:
     """(DenoisingResult, JSON part, sentence, markdown lines) of the burst's denoising check
     (`denoising.run_burst_check`)."""
     from g2r_jax.downstream import denoising
 
-    contents = ("cg", "scene") if inputs.cg_paths else ("scene",)
+    contents = _burst_contents(inputs)
     result = denoising.run_burst_check(inputs.burst, profile, inputs.cg_paths, contents=contents, seeds=seeds,
                                        steps=steps, progress=say)
     document = {"psnr": {f"{r}/{c}": v for (r, c), v in result.psnr.items()}, "noisy_psnr": result.noisy_psnr,
@@ -102,7 +150,8 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     `n`: synthetic training images per set; `folds`: cross-validation folds of the real files;
     `denoiser_steps`: Adam steps per denoiser (None: chosen on a validation split of the burst); `max_pixels`: the largest CG image read;
     `dry_run`: read and vet every input and the profile, train nothing; `progress`: a callable
-    taking one line of text; `on_problem(path, reason)`: called as each input is left out.
+    taking one line of text, or a `downstream.progress.Progress` (a bar of the check's trainings
+    with the time left); `on_problem(path, reason)`: called as each input is left out.
 
     **Returns:** a `report.Report` (its `status` is the command's exit status). **Raises:**
     `DngError` naming the folder when a check cannot run on its inputs, ValueError for options
@@ -133,15 +182,17 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
                              notes=inputs.notes)
     result = denoised = None
     body = []
+    rows = default_rows(profile is not None) if rows is None else tuple(rows)
+    _plan(progress, inputs, rows=rows, estimators=estimators, seeds=seeds, folds=folds, choose=denoiser_steps is None)
     if inputs.real is not None:
-        rows = default_rows(profile is not None) if rows is None else tuple(rows)
         result, part, said, lines = _colour_check(inputs, sensor, rows=rows, estimators=tuple(estimators),
                                                   seeds=tuple(range(seeds)), n=n, folds=folds, say=say)
         document.update(part)
         sentences += said
         body += lines
     if inputs.burst is not None:
-        denoised, part, said, lines = _burst_check(inputs, sensor, seeds=tuple(range(seeds)), steps=denoiser_steps,
+        product = sensor if profile is not None else with_files_content(sensor, inputs)
+        denoised, part, said, lines = _burst_check(inputs, product, seeds=tuple(range(seeds)), steps=denoiser_steps,
                                                    say=say)
         document["denoising"] = part
         sentences.append(said)

@@ -1,6 +1,8 @@
-"""The content model's rows of the downstream experiment (issue 32): 'content', g2r_jax with the
-lights fitted to the training files and a content model on the CG views, and 'upi_content', UPI
-on the same adapted views (so that the lead over UPI is measured on equal content).
+"""The content model in the downstream experiment (issue 32, and issue 43: the check measures
+the product): row 'fitted' is g2r_jax as `g2r-fit-profile` makes it, the lights fitted to the
+training files and a content model on the CG views; row 'single' the same from one training
+file; 'upi_content' is UPI on the same adapted views (so that the lead over UPI is measured on
+equal content).
 
 The content model is the profile's own when it carries one (used as given). Else it is the one
 `g2r-fit-profile` fits (`FITTED`, the 'cast' family: each CG frame's grey-world cast taken to the
@@ -142,7 +144,7 @@ def _note(sets, line: str) -> None:
 
 
 def fold_choice(sets, train: np.ndarray, fold: int, seed: int) -> FoldChoice:
-    """The content model of (fold, seed), cached in `sets.cache` (both rows share it): the
+    """The content model of (fold, seed), cached in `sets.cache` ('fitted' and 'upi_content' share it): the
     profile's own as given, else `FITTED` fitted to the training folds' files; each is said in
     `sets.notes`."""
     key = ("content_model", fold, seed)
@@ -151,16 +153,16 @@ def fold_choice(sets, train: np.ndarray, fold: int, seed: int) -> FoldChoice:
     own = getattr(sets.profile, "content", None)
     if own is not None:
         choice = FoldChoice(model=own, name="the profile's", errors={})
-        _note(sets, f"content rows: the profile's own content model ({own.family}, chroma scale "
+        _note(sets, f"g2r_jax rows: the profile's own content model ({own.family}, chroma scale "
                     f"{float(own.chroma_scale):.2f}, tone power {float(own.tone_power):.2f}), used as given (no selection)"
-                    + ("; it applies by default, so the other g2r_jax rows carry it too" if own.apply_by_default else ""))
+                    + ("; it applies by default, so the shipped row carries it too" if own.apply_by_default else ""))
     else:
         from g2r_jax.content import describe
 
         model = candidate_model(FITTED, sets.real.images[train], sets.real.illuminants[train], sets.views(seed),
                                 sets.profile)
         choice = FoldChoice(model=model, name=FITTED, errors={})
-        _note(sets, f"content rows, seed {seed}, fold {fold + 1}: {describe(model)}, fitted to the "
+        _note(sets, f"content model of the g2r_jax rows, seed {seed}, fold {fold + 1}: {describe(model)}, fitted to the "
                     f"{len(train)} training files' scenes (no estimator chose it)")
     sets.cache[key] = choice
     return choice
@@ -177,13 +179,35 @@ def _adapted(sets, train, fold, seed):
 
 
 def content_row(sets, train: np.ndarray, fold: int, seed: int):
-    """Row 'content': the 'fitted' row's set (same lights, noise and seed) on the adapted views.
-    The model is applied here once: the profile goes to the simulation without it."""
+    """Row 'fitted', the product: the lights fitted to the training files (`sets.fitted`) on the
+    views adapted by the fold's content model (`fold_choice`); the 'fitted_no_content' control
+    has the same lights, noise and seed on the views as they are. The model is applied here
+    once: the profile goes to the simulation without it."""
     from g2r_jax.downstream import training_sets
     from g2r_jax.pipeline import without_content
 
     fitted = without_content(sets.fitted(train, fold, seed))
     return training_sets.g2r_set(_adapted(sets, train, fold, seed), fitted, 1000 * seed + 10 * fold + 4)
+
+
+def one_file_row(sets, profile, index: int, salt: int, seed: int):
+    """Row 'single': g2r_jax as `g2r-fit-profile` makes it from the one file `index`: `profile`
+    with the lights fitted to its as-shot neutral, and the content model of its scene
+    (the profile's own when it carries one; one file weighs about 1 % against the prior of real
+    scenes, `content.fitting.files_weight`); without a model when its cast cannot be fitted, as
+    `g2r-fit-profile` then writes none."""
+    from g2r_jax.downstream import training_sets
+    from g2r_jax.pipeline import without_content
+
+    real, one = sets.real, slice(index, index + 1)
+    model = getattr(sets.profile, "content", None)
+    if model is None:
+        try:
+            model = candidate_model(FITTED, real.images[one], real.illuminants[one], sets.views(seed), sets.profile)
+        except ValueError as error:
+            _note(sets, f"one-DNG row, seed {seed}: no content model from file {index} ({error})")
+            return training_sets.g2r_set(sets.views(seed), profile, salt)
+    return training_sets.g2r_set(adapted_views(model, sets.views(seed)), without_content(profile), salt)
 
 
 def upi_content_row(sets, train: np.ndarray, fold: int, seed: int):
@@ -194,4 +218,4 @@ def upi_content_row(sets, train: np.ndarray, fold: int, seed: int):
     return training_sets.upi_set(views, seed + 1)
 
 
-BUILDERS = {"content": content_row, "upi_content": upi_content_row}
+BUILDERS = {"fitted": content_row, "upi_content": upi_content_row}

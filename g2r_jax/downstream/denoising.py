@@ -60,6 +60,7 @@ import numpy as np
 
 from g2r_jax.downstream.bursts import Burst, photon_transfer_noise, read_burst
 from g2r_jax.downstream.denoiser import DenoiserTraining, denoise, train_denoiser
+from g2r_jax.downstream.progress import advance
 
 ROWS = ("upi", "shipped", "fitted", "truth", "real")
 CONTENTS = ("cg", "scene")
@@ -562,7 +563,8 @@ def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENT
     steps per training, or None: chosen by `choose_steps` (at most `max_steps`); `folds` test
     folds of the frames (interleaved; at least 2 training frames each); `truth_noise` optional
     (shot (4,), read (4,)) for the `truth` row instead of photon transfer; `progress` a callable
-    taking one line of text. **Returns:** `DenoisingResult` (`.sentence()`, `.table()`,
+    taking one line of text, or a `downstream.progress.Progress` (advanced per denoiser trained:
+    `trainings(...)` of them). **Returns:** `DenoisingResult` (`.sentence()`, `.table()`,
     `.summary()`).
     """
     say = progress or (lambda line: None)
@@ -586,6 +588,7 @@ def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENT
         steps, curve = choose_steps(jax.random.PRNGKey(int(seeds[0])), burst, train0, scoring.gain,
                                     training=training, max_steps=max_steps)
         say(f"steps: {steps} (validation error by round, dB: {' '.join(f'{e:.2f}' for e in curve)})")
+        advance(progress, 1, "burst check: denoisers")
     cg = _load_cg(cg_images, cg_count) if "cg" in contents and synthetic else None
     results = {(r, c): [] for r in rows for c in contents if not (r == "real" and c == "cg")}
     uncorrected = {k: [] for k in results}
@@ -603,6 +606,7 @@ def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENT
                     model = _train_row(jax.random.fold_in(base, 0 if content == "cg" else 1 + k), burst, row,
                                        specs[row], content, train, cg_planes, scoring.gain, steps, training)
                     got = scoring.score(model, range(burst.n) if content == "cg" else test)
+                    advance(progress, 1, f"burst check: seed {seed}, {row}, {content}")
                     per_frame.update(got[0]), per_frame_raw.update(got[1])
                 results[(row, content)].append(float(np.mean(list(per_frame.values()))))
                 uncorrected[(row, content)].append(float(np.mean(list(per_frame_raw.values()))))
@@ -614,6 +618,14 @@ def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENT
                            seconds=seconds, peak=scoring.peak, step_curve=tuple(np.asarray(curve).tolist()),
                            cg_levels="" if cg is None else " (each brought to the scene's median and 99th "
                                                            "percentile by an affine map)")
+
+
+def trainings(n_frames: int, rows, contents, seeds, *, folds: int = 2, choose: bool = True) -> int:
+    """How many denoisers `run_burst_check` trains on a burst of `n_frames` (its units of
+    progress; `choose`: the step count is chosen, one training more)."""
+    per_seed = sum(1 if content == "cg" else len(_folds(n_frames, folds))
+                   for row in rows for content in contents if not (row == "real" and content == "cg"))
+    return per_seed * len(seeds) + int(choose)
 
 
 denoising_benchmark = run_burst_check

@@ -11,9 +11,12 @@ Rows (`ROWS`):
 - upi: UPI (Brooks et al. CVPR 2019) on the CG views: random camera matrix and gains;
 - published: the published recipe (`recipe='published'`), lights fitted to the training files;
 - shipped: g2r_jax with the profile as given (no light of this camera's scenes);
-- fitted: g2r_jax, the illuminant model fitted to the training files' lights (what a folder of
-  DNGs gives `g2r-fit-profile`: their as-shot neutrals);
-- single: g2r_jax fitted from the light of one training file (one DNG);
+- fitted: the product, g2r_jax as `g2r-fit-profile` makes it from the training files: the
+  illuminant model fitted to their lights (their as-shot neutrals) and the content model (the
+  profile's own when it carries one, else the 'cast' model fitted to the training files' scenes
+  only, never the test fold: `downstream.content_rows`);
+- fitted_no_content: control: 'fitted' without a content model (what the content model gains);
+- single: g2r_jax as `g2r-fit-profile` makes it from one training file (its light, its scene);
 - real: the real training files;
 - real_own_light: control: the training files rendered to sRGB at their measured white and
   made RAW again under that light (what the round trip costs by itself);
@@ -23,11 +26,9 @@ Rows (`ROWS`):
   illuminant model costs);
 - other_content: real images of other scenes (another camera's, rendered to sRGB at their
   white) made RAW for this camera with the fitted model (content that is real but not this set's);
-- content: 'fitted' on the CG views through a content model (the profile's own, else one chosen
-  per fold on the training folds only: `downstream.content_rows`);
-- upi_content: UPI on the same adapted views (the lead over UPI on equal content).
+- upi_content: UPI on the adapted views of 'fitted' (the lead over UPI on equal content).
 The content's share of the gap is fitted - real_profile_light; the profile's is
-real_profile_light - real.
+real_profile_light - real; the content model's gain is fitted_no_content - fitted.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from g2r_jax.downstream.progress import advance
 from g2r_jax.downstream.real_sets import RealSet
 from g2r_jax.downstream import training_sets as _sets
 from g2r_jax.measure import angular_error_degrees, error_summary, folds_of
@@ -47,21 +49,23 @@ ROWS = {
     "upi": "UPI (Brooks et al. 2019)",
     "published": "published recipe, lights fitted",
     "shipped": "g2r_jax, profile as given",
-    "fitted": "g2r_jax, lights fitted",
+    "fitted": "g2r_jax as g2r-fit-profile makes it (lights, content model)",
+    "fitted_no_content": "control: g2r_jax, lights fitted, no content model",
     "single": "g2r_jax, one DNG",
     "real": "real training files",
     "real_own_light": "control: real, own light",
     "real_other_light": "control: real, another's light",
     "real_profile_light": "control: real, lights from the model",
     "other_content": "control: other real scenes",
-    "content": "g2r_jax, lights fitted, content model",
     "upi_content": "UPI on the same adapted content",
 }
 EXTRA_ROWS: dict = {}   # rows added by `register_row`: name -> builder
-SYNTHETIC_CG_ROWS = ("upi", "published", "shipped", "fitted", "single")
-CONTROL_ROWS = ("real_own_light", "real_other_light", "real_profile_light", "other_content")
-CONTENT_ROWS = ("content", "upi_content")   # not default: they train extra estimators (`content_rows`)
-DEFAULT_ROWS = tuple(r for r in ROWS if r != "other_content" and r not in CONTENT_ROWS)
+SYNTHETIC_CG_ROWS = ("upi", "published", "shipped", "fitted", "fitted_no_content", "single")
+CONTROL_ROWS = ("fitted_no_content", "real_own_light", "real_other_light", "real_profile_light", "other_content")
+CONTENT_ROWS = ("upi_content",)   # not default: one more training set per fold and seed (`content_rows`)
+# 'published' (the paper's code) and 'other_content' (needs another camera's set) are the
+# benchmark's rows: a user's check trains the rows that answer their question.
+DEFAULT_ROWS = tuple(r for r in ROWS if r not in ("published", "other_content") and r not in CONTENT_ROWS)
 
 
 @dataclasses.dataclass
@@ -180,12 +184,13 @@ class _Sets:
             return EXTRA_ROWS[row](self, train, fold, seed)
         lights = real.illuminants[train]
         if row == "single":
-            pick = np.random.default_rng(salt + 3).integers(len(train))
-            one = fitted_illuminants(self.profile, lights[pick:pick + 1], self.single_light)
-            return _sets.g2r_set(self.views(seed), one, salt + 3)
+            pick = train[np.random.default_rng(salt + 3).integers(len(train))]
+            one = fitted_illuminants(self.profile, real.illuminants[pick:pick + 1], self.single_light)
+            return content_rows.one_file_row(self, one, pick, salt + 3, seed)
         fitted = self.fitted(train, fold, seed)
-        if row in ("fitted", "published"):
-            return _sets.g2r_set(self.views(seed), fitted, salt + 4, recipe="published" if row == "published" else "dng")
+        if row in ("fitted_no_content", "published"):
+            profile = without_content(fitted) if row == "fitted_no_content" else fitted
+            return _sets.g2r_set(self.views(seed), profile, salt + 4, recipe="published" if row == "published" else "dng")
         fitted_real = without_content(fitted)   # the controls' content is real: no CG content model on it
         if row == "other_content":
             if self.other is None:
@@ -208,6 +213,11 @@ class _Sets:
         raise ValueError(f"unknown row {row!r}; expected one of {', '.join(ROWS)}")
 
 
+def trainings(rows, estimators, seeds, folds: int) -> int:
+    """How many estimators `illuminant_experiment` trains (its units of progress)."""
+    return len(rows) * len(estimators) * len(seeds) * folds
+
+
 def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROWS, estimators=("cnn", "histogram"),
                           seeds=(0, 1, 2), n: int = 1000, folds: int = 3, illuminant_model: str = "auto",
                           single_light: str = "auto", lights: Optional[int] = None, other: Optional[tuple] = None,
@@ -224,7 +234,9 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
     'other_content' (`g2r-fit-profile --illuminant-model`); `single_light`: the kind for 'single';
     `lights`: fit those rows' model to this many training files' lights only (a random subset:
     the number-of-DNGs ablation, supplement Table S6); `other`: (RealSet, SensorProfile) of other
-    real scenes for 'other_content'.
+    real scenes for 'other_content'; `progress`: a callable taking one line of text, or a
+    `downstream.progress.Progress` (advanced by one per estimator trained:
+    `trainings(...)` of them).
 
     **Returns:** an `ExperimentResult`.
     """
@@ -252,6 +264,7 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
                     predict = train_estimator(estimator, images, lights, seed=1000 * seed + fold)
                     per_fold[(row, estimator)].append(
                         angular_error_degrees(predict(real.images[test]), real.illuminants[test]))
+                    advance(progress, 1, f"colour check: seed {seed}, fold {fold + 1}, {row}, {estimator}")
             say(f"{real.name}: seed {seed}, fold {fold + 1}/{folds} done ({time.perf_counter() - start:.0f} s)")
         for key, parts in per_fold.items():
             errors[key].append(np.concatenate(parts))

@@ -15,11 +15,13 @@ from g2r_jax.downstream.experiment import ROWS, ExperimentResult
 
 
 def decomposition(result: ExperimentResult, estimator: str) -> dict:
-    """The gap between training on g2r_jax's RAW of the CG images ('fitted') and on the real
-    files ('real'), split along the controls (mean errors, degrees; absent rows give None):
-    round trip (real_own_light - real), relighting (real_other_light - real_own_light),
-    illuminant model (real_profile_light - real_other_light), profile = real_profile_light -
-    real, content = fitted - real_profile_light."""
+    """The gap between training on g2r_jax's RAW of the CG images as the product makes it
+    ('fitted': lights and content model fitted) and on the real files ('real'), split along the
+    controls (mean errors, degrees; absent rows give None): round trip (real_own_light - real),
+    relighting (real_other_light - real_own_light), illuminant model (real_profile_light -
+    real_other_light), profile = real_profile_light - real, content = fitted -
+    real_profile_light; and what the content model gains, content_model = fitted_no_content -
+    fitted."""
     mean = {r: result.summary(r, estimator)["mean"] for r in result.rows}
     get = mean.get
 
@@ -31,6 +33,7 @@ def decomposition(result: ExperimentResult, estimator: str) -> dict:
             "illuminant_model": difference("real_profile_light", "real_other_light"),
             "profile": difference("real_profile_light", "real"), "content": difference("fitted", "real_profile_light"),
             "other_content": difference("other_content", "real_profile_light"),
+            "content_model": difference("fitted_no_content", "fitted"),
             "versus_upi": None if get("upi") is None or get("fitted") is None else 1 - get("fitted") / get("upi")}
 
 
@@ -73,7 +76,8 @@ def sentence(result: ExperimentResult, estimator: str, content_rows=None) -> str
     if ours_row is None:
         return f"{estimator}: " + ", ".join(f"{ROWS[r]} {v:.2f} deg" for r, v in mean.items())
     ours = mean[ours_row]
-    parts.append(f"an estimator ({estimator}) trained on g2r_jax RAW of the CG images errs {ours:.2f} deg "
+    made = " as g2r-fit-profile makes it (lights and content model fitted)" if ours_row == "fitted" else ""
+    parts.append(f"an estimator ({estimator}) trained on g2r_jax RAW of the CG images{made} errs {ours:.2f} deg "
                  f"on the real files")
     others = [f"{label} {mean[r]:.2f}" for r, label in (("upi", "UPI"), ("real", "trained on the real files"))
               if r in mean]
@@ -84,6 +88,11 @@ def sentence(result: ExperimentResult, estimator: str, content_rows=None) -> str
     if len(result.seeds) < 2:
         parts[-1] += "; one seed: the training noise is not measured"
     split = decomposition(result, estimator)
+    if split["content_model"] is not None:
+        noise = " (within training noise)" if seeds_apart(result, "fitted", "fitted_no_content", estimator) is False else ""
+        gain = split["content_model"]
+        parts.append(f"the content model {'lowers' if gain >= 0 else 'raises'} it by {abs(gain):.2f} deg "
+                     f"(without it {mean['fitted_no_content']:.2f}){noise}")
     if split["gap"] is not None and split["profile"] is not None:
         noise = (" (within training noise)" if seeds_apart(result, "real_profile_light", "real", estimator) is False
                  else "")

@@ -356,3 +356,27 @@ def dark_frame_note(dark_frames, *, used_for_noise: bool) -> str:
         extra.append(f"{hot:.2g} of their pixels hot, left out")
     return (f"{len(names)} dark frame(s) ({shown}): {what} (sd {sigma} DN)"
             + "".join(f"; {e}" for e in extra) + "; they take no part in the colour and illuminant fits")
+
+
+def content_model_of_dngs(infos, colour_model, *, on_error=None) -> tuple:
+    """The content model `g2r-fit-profile` fits to DNGs' scenes (`g2r_jax.content`, family 'cast':
+    each CG frame's grey-world cast taken to the median cast of the files' scenes, shrunk toward
+    the prior of real scenes by their number), applied by default.
+
+    **Arguments:** `infos`: `DngInfo`s of the files; `colour_model`: the camera's
+    `DngColourModel`; `on_error(info, problem)`: told of each file that cannot be used.
+    **Returns:** (model or None, files used, why there is none: '' with a model).
+    """
+    from g2r_jax.content import content_model_from_files, with_default
+    from g2r_jax.io.dng_read import read_dng_pixels
+
+    def read(info):
+        return read_dng_pixels(info.path, info), info.cfa_pattern, info.black_level, info.white_level, as_shot_neutral(info)
+
+    try:
+        model, used = content_model_from_files(infos, read, colour_model=colour_model, on_error=on_error)
+    except ValueError as error:    # e.g. a median cast outside sRGB at the files' light: no model, said
+        return None, 0, str(error)
+    if model is None:
+        return None, 0, "no file gave scene statistics"
+    return with_default(model, True), used, ""
