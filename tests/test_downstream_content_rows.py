@@ -284,3 +284,16 @@ def test_a_profile_that_applies_its_model_keeps_it_off_the_real_content_controls
     assert not np.allclose(expected, views, atol=1e-3)
     adapted = [c for c in g2r_calls if c[1].shape == views.shape and np.allclose(c[1], expected, atol=1e-5)]
     assert len(adapted) == 2                                      # the 'fitted' row, once per fold
+
+
+def test_rows_trained_side_by_side_give_the_same_errors():
+    """`workers` only changes the wall time: two threads and one give the same per-image errors
+    (real simulation and estimator, a small set)."""
+    real, profile = _real_set()
+    kwargs = dict(rows=("upi", "fitted", "fitted_no_content", "single", "real", "real_profile_light", "upi_content"),
+                  estimators=("moments", "histogram"), seeds=(0,), n=50, folds=2, illuminant_model="prior")
+    one = experiment.illuminant_experiment(real, profile, _cg(), workers=1, **kwargs)
+    two = experiment.illuminant_experiment(real, profile, _cg(), workers=3, **kwargs)
+    assert one.errors.keys() == two.errors.keys()
+    for key in one.errors:
+        np.testing.assert_array_equal(one.errors[key][0], two.errors[key][0], err_msg=str(key))

@@ -74,13 +74,13 @@ def _product_views(views, real, profile):
     return content_rows.adapted_views(model, views)
 
 
-def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds, say) -> tuple:
+def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds, say, workers=None) -> tuple:
     """(ExperimentResult, JSON part, sentences, markdown lines) of the colour check."""
     from g2r_jax.downstream.training_sets import cg_views, g2r_set, real_to_linear_srgb
 
     real = inputs.real
     result = experiment.illuminant_experiment(real, profile, inputs.cg, rows=rows, estimators=estimators,
-                                              seeds=seeds, n=n, folds=folds, progress=say)
+                                              seeds=seeds, n=n, folds=folds, progress=say, workers=workers)
     fitted = experiment.fitted_illuminants(profile, real.illuminants)
     synthetic = g2r_set(_product_views(cg_views(inputs.cg, min(n, 300), 0), real, profile), fitted, 0)
     round_trip = g2r_set(real_to_linear_srgb(real.images, real.illuminants, profile),
@@ -137,7 +137,7 @@ def _inputs_document(inputs: Inputs) -> dict:
 def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile=None,
               estimators: Sequence[str] = DEFAULT_ESTIMATORS, rows: Optional[Sequence[str]] = None, seeds: int = 2,
               n: int = 600, folds: int = 3, denoiser_steps: Optional[int] = None, max_pixels: Optional[int] = DEFAULT_MAX_PIXELS,
-              dry_run: bool = False, progress: Optional[Callable[[str], None]] = None,
+              dry_run: bool = False, progress: Optional[Callable[[str], None]] = None, workers: Optional[int] = None,
               on_problem: Optional[Callable[[str, str], None]] = None) -> report.Report:
     """Run the downstream check (see the module docstring).
 
@@ -151,7 +151,8 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     `denoiser_steps`: Adam steps per denoiser (None: chosen on a validation split of the burst); `max_pixels`: the largest CG image read;
     `dry_run`: read and vet every input and the profile, train nothing; `progress`: a callable
     taking one line of text, or a `downstream.progress.Progress` (a bar of the check's trainings
-    with the time left); `on_problem(path, reason)`: called as each input is left out.
+    with the time left); `workers`: rows of the colour check trained side by side
+    (`experiment.illuminant_experiment`); `on_problem(path, reason)`: called as each input is left out.
 
     **Returns:** a `report.Report` (its `status` is the command's exit status). **Raises:**
     `DngError` naming the folder when a check cannot run on its inputs, ValueError for options
@@ -186,7 +187,8 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     _plan(progress, inputs, rows=rows, estimators=estimators, seeds=seeds, folds=folds, choose=denoiser_steps is None)
     if inputs.real is not None:
         result, part, said, lines = _colour_check(inputs, sensor, rows=rows, estimators=tuple(estimators),
-                                                  seeds=tuple(range(seeds)), n=n, folds=folds, say=say)
+                                                  seeds=tuple(range(seeds)), n=n, folds=folds, say=say,
+                                                  workers=workers)
         document.update(part)
         sentences += said
         body += lines

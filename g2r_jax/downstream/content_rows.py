@@ -25,6 +25,7 @@ scale S given, or 'cast@C' a share C of each frame's cast kept, the rest taken t
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -54,14 +55,23 @@ class FoldChoice:
 def adapted_views(model, views: np.ndarray) -> np.ndarray:
     """Linear sRGB views (n, H, W, 3) through the content model (`g2r_jax.content.apply`, jit),
     in chunks of `_APPLY_CHUNK`."""
+    import dataclasses
+
+    # The model's description (source, target) is static in its pytree: without it, one compiled
+    # program serves every fold's model.
+    model = dataclasses.replace(model, source="", target=())
+    views = np.asarray(views, np.float32)
+    return np.concatenate([np.asarray(_jitted_apply()(model, views[i:i + _APPLY_CHUNK]))
+                           for i in range(0, len(views), _APPLY_CHUNK)])
+
+
+@functools.lru_cache(maxsize=1)
+def _jitted_apply():
     import jax
 
     from g2r_jax.content import apply
 
-    run = jax.jit(apply)
-    views = np.asarray(views, np.float32)
-    return np.concatenate([np.asarray(run(model, views[i:i + _APPLY_CHUNK]))
-                           for i in range(0, len(views), _APPLY_CHUNK)])
+    return jax.jit(apply)
 
 
 def candidate_model(name: str, images: np.ndarray, lights: np.ndarray, views: np.ndarray, profile):
@@ -176,6 +186,12 @@ def _adapted(sets, train, fold, seed):
         model = fold_choice(sets, train, fold, seed).model
         sets.cache[("content_views",)] = (key, adapted_views(model, sets.views(seed)))
     return sets.cache[("content_views",)][1]
+
+
+def prepare(sets, train: np.ndarray, fold: int, seed: int) -> None:
+    """Make the fold's content model and adapted views before rows that share them are built
+    side by side (`experiment._Sets.prepare`)."""
+    _adapted(sets, train, fold, seed)
 
 
 def content_row(sets, train: np.ndarray, fold: int, seed: int):

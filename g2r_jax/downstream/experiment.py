@@ -34,7 +34,9 @@ real_profile_light - real; the content model's gain is fitted_no_content - fitte
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, Optional
 
 import numpy as np
@@ -65,6 +67,9 @@ CONTROL_ROWS = ("fitted_no_content", "real_own_light", "real_other_light", "real
 CONTENT_ROWS = ("upi_content",)   # not default: one more training set per fold and seed (`content_rows`)
 # 'published' (the paper's code) and 'other_content' (needs another camera's set) are the
 # benchmark's rows: a user's check trains the rows that answer their question.
+# Rows trained side by side: one training keeps about one core busy (user time = wall time of
+# g2r-downstream on 200 small DNGs, 2 cores); docs/pages/validation/performance.md has the figures.
+MAX_WORKERS = 4
 DEFAULT_ROWS = tuple(r for r in ROWS if r not in ("published", "other_content") and r not in CONTENT_ROWS)
 
 
@@ -161,6 +166,20 @@ class _Sets:
         """The profile with its illuminant model fitted to `lights` (N, 3), this experiment's kind."""
         return fitted_illuminants(self.profile, lights, self.illuminant_model, seed)
 
+    def prepare(self, rows, train: np.ndarray, fold: int, seed: int) -> None:
+        """Make what several rows share (views, fitted lights, the fold's adapted content) before
+        the rows are built side by side, so that no two threads make the same thing."""
+        from g2r_jax.downstream import content_rows
+
+        if any(r != "real" for r in rows):
+            self.views(seed)
+        if any(r not in ("real", "upi", "shipped", "single") for r in rows):
+            self.fitted(train, fold, seed)
+        if "fitted" in rows or "upi_content" in rows:
+            content_rows.prepare(self, train, fold, seed)
+        if "upi" in rows or "upi_content" in rows:
+            self.srgb_views(seed)
+
     def build(self, row: str, train: np.ndarray, fold: int, seed: int):
         from g2r_jax.downstream import content_rows
 
@@ -221,7 +240,8 @@ def trainings(rows, estimators, seeds, folds: int) -> int:
 def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROWS, estimators=("cnn", "histogram"),
                           seeds=(0, 1, 2), n: int = 1000, folds: int = 3, illuminant_model: str = "auto",
                           single_light: str = "auto", lights: Optional[int] = None, other: Optional[tuple] = None,
-                          progress: Optional[Callable[[str], None]] = None) -> ExperimentResult:
+                          progress: Optional[Callable[[str], None]] = None,
+                          workers: Optional[int] = None) -> ExperimentResult:
     """Train illuminant estimators on each row's training set, test them on the real images.
 
     **Arguments:** `real`: the real set (`RealSet`); `profile`: the camera's `SensorProfile` (its
@@ -236,7 +256,8 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
     the number-of-DNGs ablation, supplement Table S6); `other`: (RealSet, SensorProfile) of other
     real scenes for 'other_content'; `progress`: a callable taking one line of text, or a
     `downstream.progress.Progress` (advanced by one per estimator trained:
-    `trainings(...)` of them).
+    `trainings(...)` of them); `workers`: rows of a fold built and trained side by side in
+    threads (None: up to `MAX_WORKERS`, at most the CPU count; the errors do not depend on it).
 
     **Returns:** an `ExperimentResult`.
     """
@@ -254,17 +275,26 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
                  single_light=single_light, lights=lights)
     errors = {(r, e): [] for r in rows for e in estimators}
     fold_sets = folds_of(len(real.images), folds, 0, groups=real.groups)
+    workers = max(1, min(len(rows), workers or min(MAX_WORKERS, os.cpu_count() or 1)))
     for seed in seeds:
         per_fold = {key: [] for key in errors}
         for fold, test in enumerate(fold_sets):
             train = np.setdiff1d(np.arange(len(real.images)), test)
-            for row in rows:
+            sets.prepare(rows, train, fold, seed)
+
+            def row_errors(row):
                 images, lights = sets.build(row, train, fold, seed)
+                out = {}
                 for estimator in estimators:
                     predict = train_estimator(estimator, images, lights, seed=1000 * seed + fold)
-                    per_fold[(row, estimator)].append(
-                        angular_error_degrees(predict(real.images[test]), real.illuminants[test]))
+                    out[estimator] = angular_error_degrees(predict(real.images[test]), real.illuminants[test])
                     advance(progress, 1, f"colour check: seed {seed}, fold {fold + 1}, {row}, {estimator}")
+                return out
+
+            with ThreadPoolExecutor(workers) as pool:   # rows are independent: train them side by side
+                for row, out in zip(rows, pool.map(row_errors, rows)):
+                    for estimator in estimators:
+                        per_fold[(row, estimator)].append(out[estimator])
             say(f"{real.name}: seed {seed}, fold {fold + 1}/{folds} done ({time.perf_counter() - start:.0f} s)")
         for key, parts in per_fold.items():
             errors[key].append(np.concatenate(parts))
