@@ -5,7 +5,7 @@ out), the noise models and the timings.
     python benchmarks/downstream_denoising.py [FOLDER] [--profile NAME_OR_JSON] [--seeds 0 1 2]
         [--steps N | --max-steps 3000] [--folds 2] [--cg 16] [--cg-folder ../shared/data/cg/carla]
         [--profile-noise-scale 1] [--dim] [--content-chroma S | --content-cast C] [--rows truth,upi]
-        [--contents cg]
+        [--contents cg] [--workers N]
 
 FOLDER: DNGs of one static scene from one camera (bad files are named and skipped). Without it,
 a synthetic burst of 8 frames (192 x 256, a dim dead-leaves scene, no NoiseProfile tag) is made
@@ -35,6 +35,8 @@ def main(argv=None):
     parser.add_argument("--max-steps", type=int, default=3000, help="cap of the chosen step count")
     parser.add_argument("--dim", action="store_true", help="a dim, defocused 10-bit synthetic burst (issue 34)")
     parser.add_argument("--folds", type=int, default=2)
+    parser.add_argument("--workers", type=int, default=None,
+                        help="denoisers trained side by side (default: up to 4, at most the CPU count; 1: one at a time)")
     parser.add_argument("--cg", type=int, default=16, help="number of CG images (0: no CG content)")
     parser.add_argument("--cg-folder", type=Path, default=DEFAULT_CG)
     parser.add_argument("--iso", type=float, default=1600.0, help="ISO of the synthetic burst")
@@ -104,7 +106,8 @@ def main(argv=None):
         result = denoising.run_burst_check(burst, profile, cg, rows=tuple(args.rows.split(",")), contents=contents,
                                            seeds=args.seeds,
                                            steps=args.steps, max_steps=args.max_steps, folds=args.folds,
-                                           cg_count=args.cg, progress=lambda line: print("  " + line, flush=True))
+                                           cg_count=args.cg, workers=args.workers,
+                                           progress=lambda line: print("  " + line, flush=True))
     total = time.perf_counter() - started
     print()
     print(result.summary())

@@ -300,3 +300,12 @@ def test_check_all_rows_on_cg_and_scene(burst_folder, true_profile, shared_data)
     for key, values in result.psnr.items():
         assert len(values) == 2 and np.all(np.isfinite(values)), key
     assert result.cg_images == 4 and "affine" in result.summary()
+
+
+def test_denoisers_trained_side_by_side_give_the_same_psnr(burst_folder, true_profile):
+    """`workers` only changes the wall time: every row, content-equal, one thread and three."""
+    kwargs = dict(rows=("upi", "truth", "real"), contents=("scene",), seeds=(0,), steps=20)
+    one = denoising.run_burst_check(burst_folder, true_profile, workers=1, **kwargs)
+    three = denoising.run_burst_check(burst_folder, true_profile, workers=3, **kwargs)
+    assert one.psnr == three.psnr and one.psnr_uncorrected == three.psnr_uncorrected
+    assert set(one.psnr) == {("upi", "scene"), ("truth", "scene"), ("real", "scene")}

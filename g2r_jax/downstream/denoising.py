@@ -50,7 +50,9 @@ folds only.
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 import warnings
 from pathlib import Path
 
@@ -68,6 +70,7 @@ ROW_NAMES = {"upi": "UPI noise (Brooks 2019)", "shipped": "g2r_jax shipped profi
              "g2r_jax fitted from the burst", "truth": "photon-transfer truth", "real": "real pairs (cross-validated)"}
 CONTENT_NAMES = {"cg": "CG content", "scene": "real scene (content-equal)"}
 
+MAX_WORKERS = 4           # denoisers trained side by side (threads): one keeps about one core busy
 MAX_STEPS = 3000          # the cap of the step-count selection (`choose_steps`)
 PATIENCE = 3              # rounds of 100 steps without a gain of more than MIN_GAIN_DB end it
 MIN_GAIN_DB = 0.02
@@ -552,7 +555,8 @@ def _check_arguments(burst, profile, rows, contents):
 
 def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENTS, seeds=(0, 1, 2), steps=None,
                     max_steps: int = MAX_STEPS, folds: int = 2, truth_noise=None, cg_count: int = 32,
-                    training: DenoiserTraining = DenoiserTraining(), progress=None) -> DenoisingResult:
+                    training: DenoiserTraining = DenoiserTraining(), progress=None,
+                    workers: int | None = None) -> DenoisingResult:
     """The denoising check on a burst (a `Burst`, or a folder / list of DNGs for `read_burst`).
 
     **Arguments:** `profile` the camera's SensorProfile (its CFA pattern must be the burst's);
@@ -564,7 +568,8 @@ def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENT
     folds of the frames (interleaved; at least 2 training frames each); `truth_noise` optional
     (shot (4,), read (4,)) for the `truth` row instead of photon transfer; `progress` a callable
     taking one line of text, or a `downstream.progress.Progress` (advanced per denoiser trained:
-    `trainings(...)` of them). **Returns:** `DenoisingResult` (`.sentence()`, `.table()`,
+    `trainings(...)` of them); `workers`: denoisers trained side by side in threads (None: up
+    to `MAX_WORKERS`, at most the CPU count; the PSNRs do not depend on it). **Returns:** `DenoisingResult` (`.sentence()`, `.table()`,
     `.summary()`).
     """
     say = progress or (lambda line: None)
@@ -596,28 +601,42 @@ def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENT
     for seed in seeds:
         base = jax.random.PRNGKey(int(seed))
         cg_planes = None if cg is None else match_levels(clean_cg_planes(cg, profile, burst.iso, int(seed)), scene)
-        for row in rows:
+        jobs = [(row, content, k, tuple(test)) for row in rows for content in contents if (row, content) in results
+                for k, test in enumerate([[]] if content == "cg" else test_folds)]
+
+        def run(job):
+            row, content, k, test = job
             started = time.perf_counter()
-            for content in [c for c in contents if (row, c) in results]:
-                per_frame, per_frame_raw = {}, {}
-                fold_list = [[]] if content == "cg" else test_folds
-                for k, test in enumerate(fold_list):
-                    train = [i for i in range(burst.n) if i not in test]
-                    model = _train_row(jax.random.fold_in(base, 0 if content == "cg" else 1 + k), burst, row,
-                                       specs[row], content, train, cg_planes, scoring.gain, steps, training)
-                    got = scoring.score(model, range(burst.n) if content == "cg" else test)
-                    advance(progress, 1, f"burst check: seed {seed}, {row}, {content}")
-                    per_frame.update(got[0]), per_frame_raw.update(got[1])
-                results[(row, content)].append(float(np.mean(list(per_frame.values()))))
-                uncorrected[(row, content)].append(float(np.mean(list(per_frame_raw.values()))))
-                say(f"seed {seed} {row:8s} {content:6s} {results[(row, content)][-1]:.2f} dB")
-            seconds[row].append(time.perf_counter() - started)
+            train = [i for i in range(burst.n) if i not in test]
+            model = _train_row(jax.random.fold_in(base, 0 if content == "cg" else 1 + k), burst, row,
+                               specs[row], content, train, cg_planes, scoring.gain, steps, training)
+            got = scoring.score(model, range(burst.n) if content == "cg" else test)
+            advance(progress, 1, f"burst check: seed {seed}, {row}, {content}")
+            return got, time.perf_counter() - started
+
+        with ThreadPoolExecutor(max(1, min(len(jobs), workers or min(MAX_WORKERS, os.cpu_count() or 1)))) as pool:
+            done = dict(zip(jobs, pool.map(run, jobs)))   # the denoisers are independent: trained side by side
+        _collect(seed, rows, results, uncorrected, seconds, done, say)
     return DenoisingResult(psnr=results, psnr_uncorrected=uncorrected, noisy_psnr=noisy_psnr, noise=noise,
                            frames=burst.names, skipped=burst.skipped, iso=burst.iso, folds=len(test_folds),
                            seeds=tuple(seeds), steps=int(steps), cg_images=0 if cg is None else len(cg),
                            seconds=seconds, peak=scoring.peak, step_curve=tuple(np.asarray(curve).tolist()),
                            cg_levels="" if cg is None else " (each brought to the scene's median and 99th "
                                                            "percentile by an affine map)")
+
+
+def _collect(seed, rows, results, uncorrected, seconds, done: dict, say) -> None:
+    """One seed's trainings (`done`: (row, content, fold, test) -> ((corrected, raw) PSNR per
+    frame, seconds)) into the mean PSNR per row and content, in the rows' order."""
+    for row in rows:
+        for content in [c for c in CONTENTS if (row, c) in results]:
+            parts = [got for (r, c, _, _), (got, _) in done.items() if (r, c) == (row, content)]
+            if not parts:
+                continue
+            results[(row, content)].append(float(np.mean([v for got in parts for v in got[0].values()])))
+            uncorrected[(row, content)].append(float(np.mean([v for got in parts for v in got[1].values()])))
+            say(f"seed {seed} {row:8s} {content:6s} {results[(row, content)][-1]:.2f} dB")
+        seconds[row].append(sum(t for (r, *_), (_, t) in done.items() if r == row))
 
 
 def trainings(n_frames: int, rows, contents, seeds, *, folds: int = 2, choose: bool = True) -> int:
