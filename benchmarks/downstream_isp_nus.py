@@ -1,0 +1,201 @@
+"""The paper's neural-ISP task (Graphics2RAW supplement S1.3, Tables S2, S5, S6) on the nine NUS
+cameras: a UNet learns packed RAW -> display sRGB (the target: LibRaw at each DNG's as-shot white
+balance, `g2r_jax.downstream.reference_render`) on synthetic pairs made from the CARLA CG frames
+(UPI, g2r_jax fitted / without content model / shipped / one DNG) or on the real training folds,
+and is tested on the real held-out fold (`g2r_jax.downstream.isp.run_isp_task`).
+
+Real pairs: each camera's 64 x 64 NUS thumbnails (../shared/data/estimation/nus/<camera>.npz)
+written as 64 x 64 Bayer DNGs of the camera by our own writer (`isp_pairs.thumbnail_sources`:
+mosaicked at the profile's CFA, scaled to its black..white levels, saturated pixels (0 in the
+npz) white, AsShotNeutral the measured light, the matrices of `downstream_nus.camera_profile`).
+CG: ../shared/data/cg/carla/*.png. Profiles as benchmarks/downstream_nus.py: 'fitted' fits the
+'cast' content model on the training folds, 'shipped' is the profile with the content model a
+shipped profile carries (`shipped_content_model`, applied by default).
+
+    python benchmarks/downstream_isp_nus.py [--cameras Canon600D,NikonD40] [--seeds 3] [--n 200]
+        [--rows upi,fitted,...] [--steps 600] [--lights 0,1,10,all] [--json out/isp_nus.json]
+        [--markdown out/isp_nus.md] [--figures out/isp_figures]
+
+`--lights` adds the few-DNG curve (Table S6): 'fitted' with its lights fitted to 1 or 10 random
+training files (content model as in 'fitted'), 0 = the shipped profile's lights and content
+model (the 'shipped' row), all = the 'fitted' row. Prints one table per camera as it finishes,
+then the summary across cameras. LibRaw runs single-threaded (OMP_NUM_THREADS=1 unless set):
+on 64 x 64 files its threads only wait for each other on a shared 2-core machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from downstream_nus import CAMERAS, CARLA, NUS, camera_profile, shipped_content_model  # noqa: E402
+
+ROWS = ("upi", "fitted", "fitted_no_content", "shipped", "single", "real", "real_profile_light")
+CURVE_ROWS = ("fitted",)
+
+
+def profiles(name: str):
+    """(the camera's profile without content model, the same with the shipped content model
+    applied by default: the 'shipped' row)."""
+    from g2r_jax.content.model import with_default
+    from g2r_jax.profile.schema import replace
+
+    profile = camera_profile(name)
+    return profile, replace(profile, content=with_default(shipped_content_model(name, profile.colour), True))
+
+
+def run_camera(name: str, args, cg, say):
+    """{'all': IspResult, 1: IspResult of the curve, ...} of one camera."""
+    from g2r_jax.downstream import isp, isp_pairs, real_sets
+    from g2r_jax.downstream.isp_net import IspTraining
+
+    real = real_sets.load_nus(NUS / f"{name}.npz")
+    profile, shipped = profiles(name)
+    dngs = isp_pairs.thumbnail_sources(real.images, real.illuminants, profile, real.files or None)
+    training = IspTraining(steps=args.steps, batch=args.batch, width=args.width, learning_rate=args.learning_rate)
+    common = dict(seeds=tuple(range(args.seeds)), folds=3, n=args.n, dngs=dngs, shipped=shipped, training=training,
+                  progress=say)
+    out = {"all": isp.run_isp_task(real, profile, cg, rows=args.rows, **common)}
+    for count in args.lights:
+        if count not in (0, None):
+            out[count] = isp.run_isp_task(real, profile, cg, rows=CURVE_ROWS, lights=count, **common)
+    return out
+
+
+def summary_table(results) -> str:
+    """Markdown: per camera, each row's mean PSNR / SSIM / ΔE2000; then the mean of the cameras,
+    the fitted / real ΔE ratio and the PSNR gap."""
+    from g2r_jax.downstream.isp import METRICS
+
+    rows = next(iter(results.values()))["all"].rows
+    head = "| camera | " + " | ".join(rows) + " | fitted / real ΔE | real - fitted PSNR | fitted - UPI PSNR |"
+    out = ["Cells: PSNR dB / SSIM / ΔE2000, mean over images, folds and seeds.", "", head,
+           "|---|" + "---|" * (len(rows) + 3)]
+    means = {r: {m: [] for m in METRICS} for r in rows}
+    for name, parts in results.items():
+        result = parts["all"]
+        cells = []
+        for r in rows:
+            s = {m: result.summary(r, m)["mean"] for m in METRICS}
+            for m in METRICS:
+                means[r][m].append(s[m])
+            cells.append(f"{s['psnr']:.2f} / {s['ssim']:.3f} / {s['delta_e']:.2f}")
+        out.append(f"| {name} | " + " | ".join(cells) + " | " + _ratios(lambda r, m: result.summary(r, m)["mean"], rows) + " |")
+    cells = [f"{np.mean(means[r]['psnr']):.2f} / {np.mean(means[r]['ssim']):.3f} / {np.mean(means[r]['delta_e']):.2f}"
+             for r in rows]
+    out.append("| **mean of cameras** | " + " | ".join(cells) + " | "
+               + _ratios(lambda r, m: float(np.mean(means[r][m])), rows) + " |")
+    return "\n".join(out)
+
+
+def _ratios(value, rows) -> str:
+    cells = []
+    if {"fitted", "real"} <= set(rows):
+        cells += [f"{value('fitted', 'delta_e') / value('real', 'delta_e'):.2f}x",
+                  f"{value('real', 'psnr') - value('fitted', 'psnr'):+.2f} dB"]
+    else:
+        cells += ["", ""]
+    cells.append(f"{value('fitted', 'psnr') - value('upi', 'psnr'):+.2f} dB" if {"fitted", "upi"} <= set(rows) else "")
+    return " | ".join(cells)
+
+
+def curve_table(results, lights) -> str:
+    """Markdown: the few-DNG curve, PSNR / ΔE2000 of g2r_jax by the number of DNGs its lights come
+    from (mean over seeds), per camera and the mean of the cameras."""
+    labels = [("0 (shipped)" if c == 0 else "all" if c is None else str(c)) for c in lights]
+    out = ["| camera | " + " | ".join(f"{label} DNGs" for label in labels) + " |", "|---|" + "---|" * len(lights)]
+    columns = {label: [] for label in labels}
+    for name, parts in results.items():
+        cells = []
+        for count, label in zip(lights, labels):
+            result, row = ((parts["all"], "shipped") if count == 0 else (parts["all"], "fitted") if count is None
+                           else (parts[count], "fitted"))
+            if row not in result.rows:
+                cells.append("")
+                continue
+            pair = (result.summary(row, "psnr")["mean"], result.summary(row, "delta_e")["mean"])
+            columns[label].append(pair)
+            cells.append(f"{pair[0]:.2f} / {pair[1]:.2f}")
+        out.append(f"| {name} | " + " | ".join(cells) + " |")
+    out.append("| **mean** | " + " | ".join(f"{np.mean([p[0] for p in v]):.2f} / {np.mean([p[1] for p in v]):.2f}"
+                                         if v else "" for v in columns.values()) + " |")
+    return "\n".join(out)
+
+
+def _arguments(argv):
+    from g2r_jax.downstream.isp_net import IspTraining
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--cameras", default=",".join(CAMERAS))
+    parser.add_argument("--rows", default=",".join(ROWS))
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--n", type=int, default=200, help="synthetic training pairs per set")
+    parser.add_argument("--steps", type=int, default=IspTraining.steps)
+    parser.add_argument("--batch", type=int, default=IspTraining.batch)
+    parser.add_argument("--width", type=int, default=IspTraining.width)
+    parser.add_argument("--learning-rate", type=float, default=IspTraining.learning_rate)
+    parser.add_argument("--lights", default="", help="the few-DNG curve, e.g. 0,1,10,all")
+    parser.add_argument("--json", type=Path)
+    parser.add_argument("--markdown", type=Path)
+    parser.add_argument("--figures", type=Path, help="a folder: one PNG of predictions per camera")
+    args = parser.parse_args(argv)
+    args.rows = tuple(args.rows.split(","))
+    args.lights = [None if v == "all" else int(v) for v in args.lights.split(",") if v]
+    return args
+
+
+def main(argv=None) -> int:
+    from PIL import Image
+
+    from g2r_jax.runtime import compile_cache
+
+    args = _arguments(argv)
+    if not NUS.is_dir() or not CARLA.is_dir():
+        print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
+        return 2
+    compile_cache.enable(program="g2r_jax-downstream")
+    cg = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))]
+    say = lambda m: print(f"  {m}", file=sys.stderr, flush=True)
+    start = time.perf_counter()
+    results, lines = {}, []
+    for name in args.cameras.split(","):
+        results[name] = run_camera(name, args, cg, say)
+        result = results[name]["all"]
+        block = [f"## {name} ({result.images} real images; {result.seconds:.0f} s)", "", result.table(), "",
+                 result.sentence(), ""]
+        print("\n".join(block), flush=True)
+        lines += block
+        if args.figures:
+            args.figures.mkdir(parents=True, exist_ok=True)
+            result.figure(args.figures / f"isp_{name}.png")
+    total = time.perf_counter() - start
+    lines += ["## All cameras", "", summary_table(results), ""]
+    if args.lights:
+        lines += ["## Number of DNGs (PSNR dB / ΔE2000)", "", curve_table(results, args.lights), ""]
+    lines += [f"Total {total / 60:.1f} min; UNet width {args.width}, {args.steps} steps of {args.batch}, learning rate "
+              f"{args.learning_rate:g}; n = {args.n}; seeds 0-{args.seeds - 1}."]
+    print("\n".join(lines[lines.index("## All cameras"):]))
+    if args.markdown:
+        args.markdown.parent.mkdir(parents=True, exist_ok=True)
+        args.markdown.write_text("\n".join(lines) + "\n")
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        document = {name: {str(k): r.to_dict() for k, r in parts.items()} for name, parts in results.items()}
+        args.json.write_text(json.dumps({"seconds": total, "arguments": {k: str(v) for k, v in vars(args).items()},
+                                         "cameras": document}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,413 @@
+"""The paper's third downstream task, a neural ISP (Graphics2RAW, Seo et al. ICCV 2023, Sec. 4.5
+and supplement S1.3, Tables S2, S3, S5, S6): a UNet learns RAW -> display sRGB on synthetic
+pairs and is tested on the camera's real pairs, beside the same UNet trained on UPI's synthetic
+RAW (Brooks et al. CVPR 2019) and on the real pairs themselves (cross-validated).
+
+Protocol: one fixed developer (`downstream.reference_render`, LibRaw at each file's AsShotNeutral)
+makes the sRGB target of every DNG, real or synthetic; the network sees the packed RAW alone, so
+it must learn the white balance too (`downstream.isp_pairs` makes the pairs, `downstream.isp_net`
+has the UNet and the measures). The real files are split into `folds` folds
+(`g2r_jax.measure.folds_of`, the colour check's folds); for each fold and seed every row makes
+its training pairs from the training folds (never the test fold), one UNet per row is trained
+(`downstream.training.fit`) and tested on the fold's real pairs: PSNR, SSIM and CIEDE2000 per
+image, pooled over folds, then the mean over seeds and the seeds' spread.
+
+Rows (`ROWS`; the colour check's names):
+- upi: UPI on the CG views: its random camera matrix and gains; the DNG carries the camera's tags
+  and AsShotNeutral = the inverse of UPI's white-balance gains;
+- fitted: the product, g2r_jax as `g2r-fit-profile` makes it: the lights fitted to the training
+  folds' as-shot neutrals (`experiment.fitted_illuminants`) and the content model (the profile's
+  own when it carries one, else the 'cast' model fitted to the training folds' thumbnails only,
+  `content_rows.candidate_model(content_rows.FITTED, ...)`), which recolours every CG frame
+  before it is made RAW: the target is developed from the DNG that carries the adapted frame;
+- fitted_no_content: control: the same lights, no content model (`pipeline.without_content`);
+- shipped: the profile as given (out of the box; only when the caller asks for it);
+- single: g2r_jax from one training file (its light, the content model of its scene);
+- real: the real training folds' pairs;
+- real_profile_light: control: the real training thumbnails rendered to linear sRGB at their
+  measured white (`training_sets.real_to_linear_srgb`) and made RAW again through g2r_jax with
+  the fitted lights, no content model. The profile's share of the gap to real training is
+  real_profile_light - real, the CG content's is fitted - real_profile_light.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Callable, Optional, Sequence
+
+import numpy as np
+
+from g2r_jax.downstream import isp_pairs as _pairs
+from g2r_jax.downstream import thumbnails as _thumbnails
+from g2r_jax.downstream import training_sets as _sets
+from g2r_jax.downstream.isp_net import IspTraining
+from g2r_jax.downstream.progress import advance
+from g2r_jax.downstream.real_sets import RealSet
+
+ROWS = {
+    "upi": "UPI (Brooks et al. 2019)",
+    "fitted": "g2r_jax as g2r-fit-profile makes it (lights, content model)",
+    "fitted_no_content": "control: g2r_jax, lights fitted, no content model",
+    "shipped": "g2r_jax, profile as given",
+    "single": "g2r_jax, one DNG",
+    "real": "real training files",
+    "real_profile_light": "control: real, lights from the model",
+}
+DEFAULT_ROWS = tuple(r for r in ROWS if r != "shipped")   # 'shipped' when the caller gives a profile
+METRICS = {"psnr": "PSNR (dB)", "ssim": "SSIM", "delta_e": "ΔE2000"}
+HIGHER_IS_BETTER = {"psnr": True, "ssim": True, "delta_e": False}
+EXAMPLES = 3   # real test files kept for the figure (first seed)
+
+
+@dataclasses.dataclass
+class IspResult:
+    """Per-image measures of every row: `metrics[(row, metric)]` one array per seed of every real
+    test image's value (folds concatenated); `skipped` the real files left out [(name, reason)];
+    `examples` the figure's data ({'names', 'target', 'predicted': {row: images}})."""
+
+    camera: str
+    rows: tuple
+    seeds: tuple
+    folds: int
+    n: int
+    size: int
+    metrics: dict
+    images: int = 0
+    seconds: float = 0.0
+    notes: list = dataclasses.field(default_factory=list)
+    skipped: list = dataclasses.field(default_factory=list)
+    examples: dict = dataclasses.field(default_factory=dict)
+    training: dict = dataclasses.field(default_factory=dict)
+
+    def summary(self, row: str, metric: str) -> dict:
+        """The mean over images, folds and seeds of `metric` for `row`, each seed's mean, their
+        range and standard deviation.
+
+        **Arguments:** `row` in `rows`; `metric` in `METRICS`. **Returns:** a dict."""
+        per_seed = [np.asarray(a, np.float64) for a in self.metrics[(row, metric)]]
+        means = [float(np.mean(a)) for a in per_seed]
+        return {"mean": float(np.mean(np.concatenate(per_seed))), "median": float(np.median(np.concatenate(per_seed))),
+                "seed_means": means, "seed_min": min(means), "seed_max": max(means),
+                "seed_sd": float(np.std(means, ddof=1)) if len(means) > 1 else 0.0}
+
+    def to_dict(self) -> dict:
+        """Everything but the figure's images, JSON-ready. **Returns:** a dict."""
+        return {"camera": self.camera, "rows": list(self.rows), "seeds": list(self.seeds), "folds": self.folds,
+                "n": self.n, "size": self.size, "images": self.images, "seconds": self.seconds,
+                "notes": list(self.notes), "skipped": [{"path": p, "reason": r} for p, r in self.skipped],
+                "training": dict(self.training),
+                "summary": {f"{r}/{m}": self.summary(r, m) for r in self.rows for m in METRICS},
+                "sentence": self.sentence()}
+
+    def table(self) -> str:
+        """Markdown: one line per row, the mean of each measure (pooled over folds and seeds) and
+        the seeds' range. **Returns:** the table's text."""
+        out = ["| training set | PSNR (dB) | SSIM | ΔE2000 | seeds: PSNR | seeds: ΔE2000 |", "|---|---|---|---|---|---|"]
+        for row in self.rows:
+            s = {m: self.summary(row, m) for m in METRICS}
+            out.append(f"| {ROWS[row]} (`{row}`) | {s['psnr']['mean']:.2f} | {s['ssim']['mean']:.3f} | "
+                       f"{s['delta_e']['mean']:.2f} | {s['psnr']['seed_min']:.2f}-{s['psnr']['seed_max']:.2f} | "
+                       f"{s['delta_e']['seed_min']:.2f}-{s['delta_e']['seed_max']:.2f} |")
+        return "\n".join(out)
+
+    def compare(self, a: str, b: str, metric: str) -> tuple:
+        """(mean of `a` - mean of `b`, whether their seeds' ranges overlap) for `metric`.
+
+        **Arguments:** two rows; a metric. **Returns:** (float, bool)."""
+        sa, sb = self.summary(a, metric), self.summary(b, metric)
+        overlap = sa["seed_min"] <= sb["seed_max"] and sb["seed_min"] <= sa["seed_max"] and len(self.seeds) > 1
+        return sa["mean"] - sb["mean"], overlap
+
+    def sentence(self) -> str:
+        """One sentence: the product row against UPI and real training (PSNR, ΔE2000), and the
+        profile's and the CG content's shares of the gap; a difference whose seeds' ranges
+        overlap is called within training noise. **Returns:** the sentence."""
+        return _sentence(self)
+
+    def figure(self, path) -> bool:
+        """Predicted against target images of a few real test files, one column per row (PNG,
+        written atomically). **Arguments:** `path`. **Returns:** False when matplotlib is absent
+        or there is nothing to show, else True."""
+        return _figure(self, path)
+
+
+def _psnr_phrase(result, a: str, b: str) -> str:
+    diff, overlap = result.compare(a, b, "psnr")
+    if overlap:
+        return f"within training noise of {_name(b)} ({diff:+.2f} dB)"
+    return f"{abs(diff):.2f} dB {'above' if diff > 0 else 'below'} {_name(b)}"
+
+
+def _delta_phrase(result, a: str, b: str) -> str:
+    diff, overlap = result.compare(a, b, "delta_e")
+    ratio = result.summary(a, "delta_e")["mean"] / max(result.summary(b, "delta_e")["mean"], 1e-12)
+    if overlap:
+        return f"ΔE2000 within training noise of {_name(b)} ({ratio:.2f}x)"
+    return f"ΔE2000 {ratio:.2f}x {_name(b)}'s"
+
+
+def _name(row: str) -> str:
+    return {"upi": "UPI", "real": "real training", "fitted": "g2r_jax (fitted)", "shipped": "g2r_jax as shipped",
+            "single": "g2r_jax from one DNG", "fitted_no_content": "g2r_jax without content model",
+            "real_profile_light": "real scenes under the fitted lights"}.get(row, row)
+
+
+def _sentence(result: IspResult) -> str:
+    rows = result.rows
+    product = next((r for r in ("fitted", "shipped", "fitted_no_content", "single") if r in rows), None)
+    head = (f"Neural ISP on {result.camera or 'the real files'} ({result.images} real files, {result.folds} folds, "
+            f"{len(result.seeds)} seed(s))")
+    if product is None:
+        return head + ": " + "; ".join(f"{_name(r)} {result.summary(r, 'psnr')['mean']:.2f} dB, ΔE2000 "
+                                       f"{result.summary(r, 'delta_e')['mean']:.2f}" for r in rows) + "."
+    s = {m: result.summary(product, m)["mean"] for m in METRICS}
+    parts = [f"{head}: {_name(product)} reaches {s['psnr']:.2f} dB and ΔE2000 {s['delta_e']:.2f}"]
+    for other in ("upi", "real"):
+        if other in rows:
+            parts.append(f"{_psnr_phrase(result, product, other)}, {_delta_phrase(result, product, other)}")
+    text = "; ".join(parts)
+    if {"real", "real_profile_light"} <= set(rows) and product == "fitted":
+        profile_db = -result.compare("real_profile_light", "real", "psnr")[0]
+        content_db = -result.compare("fitted", "real_profile_light", "psnr")[0]
+        profile_de = result.compare("real_profile_light", "real", "delta_e")[0]
+        content_de = result.compare("fitted", "real_profile_light", "delta_e")[0]
+        text += (f"; of the gap to real training the profile's share (real scenes under the fitted lights) is "
+                 f"{profile_db:+.2f} dB / ΔE2000 {profile_de:+.2f} and the CG content's {content_db:+.2f} dB / "
+                 f"ΔE2000 {content_de:+.2f}")
+    return text + "."
+
+
+def _figure(result: IspResult, path) -> bool:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    examples = result.examples
+    if not examples or not len(examples.get("names", ())):
+        return False
+    import io
+
+    from g2r_jax.io.atomic import atomic_write_bytes
+
+    rows = [r for r in result.rows if r in examples["predicted"]]
+    columns = ["target"] + rows
+    count = len(examples["names"])
+    fig, axes = plt.subplots(count, len(columns), figsize=(1.6 * len(columns), 1.7 * count), squeeze=False)
+    for i in range(count):
+        for j, column in enumerate(columns):
+            image = examples["target"][i] if column == "target" else examples["predicted"][column][i]
+            axes[i, j].imshow(np.clip(image, 0, 1), interpolation="nearest")
+            axes[i, j].set_xticks([])
+            axes[i, j].set_yticks([])
+            if i == 0:
+                axes[i, j].set_title(column, fontsize=7)
+            if j == 0:
+                axes[i, j].set_ylabel(str(examples["names"][i])[-18:], fontsize=6)
+    fig.suptitle(f"Neural ISP, {result.camera}: LibRaw target and each row's UNet (seed {result.seeds[0]})", fontsize=8)
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=120)
+    plt.close(fig)
+    atomic_write_bytes(path, buffer.getvalue())
+    return True
+
+
+def _repeat_to(n: int, *arrays):
+    reps = max(1, -(-n // len(arrays[0])))
+    return [np.concatenate([a] * reps)[: max(n, len(arrays[0]))] for a in arrays]
+
+
+class _RowSets:
+    """Builds and caches each row's training pairs for one camera, fold and seed."""
+
+    def __init__(self, real: RealSet, pairs: tuple, profile, shipped, cg_linear, *, n, size, view_size,
+                 illuminant_model, single_light, lights):
+        self.real, self.pairs, self.profile, self.shipped = real, pairs, profile, shipped
+        self.cg, self.n, self.size, self.view_size = cg_linear, n, size, view_size
+        self.illuminant_model, self.single_light, self.lights = illuminant_model, single_light, lights
+        self.cache, self.notes = {}, []
+
+    def _cached(self, key, make):
+        if key not in self.cache:
+            self.cache[key] = make()
+        return self.cache[key]
+
+    def views(self, seed):
+        return self._cached(("views", seed), lambda: _sets.cg_views(self.cg, self.n, seed, size=self.view_size))
+
+    def fitted(self, train, fold, seed):
+        """The profile with its lights fitted to the training folds' (or `lights` of them; 0: its own)."""
+        from g2r_jax.downstream.experiment import fitted_illuminants
+
+        def make():
+            lights = self.real.illuminants[train]
+            if self.lights == 0:
+                return self.profile
+            if self.lights is not None and self.lights < len(lights):
+                pick = np.random.default_rng(1000 * seed + 10 * fold + 9).choice(len(lights), self.lights, replace=False)
+                lights = lights[pick]
+            return fitted_illuminants(self.profile, lights, self.illuminant_model, seed)
+        return self._cached(("fitted", fold, seed), make)
+
+    def content_model(self, images, lights, seed, where: str):
+        """The profile's own content model, else the FITTED family fitted to `images` (None when
+        their cast cannot be fitted, as g2r-fit-profile then writes none)."""
+        from g2r_jax.content import describe
+        from g2r_jax.downstream import content_rows
+
+        own = getattr(self.profile, "content", None)
+        if own is not None:
+            self.notes.append(f"g2r_jax rows: the profile's own content model ({describe(own)}), used as given")
+            return own
+        try:
+            model = content_rows.candidate_model(content_rows.FITTED, images, lights, self.views(seed), self.profile)
+        except ValueError as error:
+            self.notes.append(f"{where}: no content model ({error})")
+            return None
+        self.notes.append(f"{where}: {describe(model)}, fitted to {len(images)} training file(s)' scenes")
+        return model
+
+    def _g2r(self, views, profile, salt, model=None, *, as_given: bool = False):
+        """g2r_jax pairs of `views` (through `model` first, when given) with `profile`: as given
+        (its content model applied as it says) or without its content model."""
+        from g2r_jax.downstream.content_rows import adapted_views
+        from g2r_jax.pipeline import without_content
+
+        views = views if model is None else adapted_views(model, views)
+        return _pairs.g2r_pairs(views, profile if as_given else without_content(profile), salt, size=self.size)
+
+    def build(self, row: str, train: np.ndarray, fold: int, seed: int):
+        salt = 1000 * seed + 10 * fold
+        if row == "real":
+            return self.pairs[0][train], self.pairs[1][train]
+        if row == "upi":
+            return self._cached(("upi", seed), lambda: _pairs.upi_pairs(
+                _sets.linear_to_srgb_views(self.views(seed)), self.profile, seed + 1, size=self.size))
+        if row == "shipped":
+            return self._cached(("shipped", seed), lambda: self._g2r(self.views(seed), self.shipped, seed + 2, as_given=True))
+        if row == "single":
+            pick = int(train[np.random.default_rng(salt + 3).integers(len(train))])
+            from g2r_jax.downstream.experiment import fitted_illuminants
+
+            one = slice(pick, pick + 1)
+            profile = fitted_illuminants(self.profile, self.real.illuminants[one], self.single_light)
+            model = self.content_model(self.real.images[one], self.real.illuminants[one], seed,
+                                       f"one-DNG row, seed {seed}, fold {fold + 1}, file {pick}")
+            return self._g2r(self.views(seed), profile, salt + 3, model)
+        fitted = self.fitted(train, fold, seed)
+        if row == "fitted":
+            model = self.content_model(self.real.images[train], self.real.illuminants[train], seed,
+                                       f"content model, seed {seed}, fold {fold + 1}")
+            return self._g2r(self.views(seed), fitted, salt + 4, model)
+        if row == "fitted_no_content":
+            return self._g2r(self.views(seed), fitted, salt + 4)
+        if row == "real_profile_light":
+            views = _sets.real_to_linear_srgb(self.real.images[train], self.real.illuminants[train], self.profile,
+                                              size=self.real.images.shape[1])
+            views = np.stack([_thumbnails.area_average(v, self.view_size) for v in views])
+            views, = _repeat_to(self.n, views)
+            return self._g2r(views, fitted, salt + 8)
+        raise ValueError(f"unknown row {row!r}; expected one of {', '.join(ROWS)}")
+
+
+def trainings(rows, seeds, folds: int) -> int:
+    """How many UNets `run_isp_task` trains (its units of progress). **Arguments:** `rows`,
+    `seeds` (sequences), `folds`. **Returns:** an int."""
+    return len(rows) * len(seeds) * folds
+
+
+def _real_pairs(real: RealSet, dngs, size: int, folds: int):
+    """(the real set and its pairs without the files the renderer cannot develop, skipped)."""
+    sources = list(real.files) if dngs is None else list(dngs)
+    if len(sources) != len(real.images):
+        raise ValueError(f"{real.name}: {len(sources)} DNGs for {len(real.images)} real images (give one per image)")
+    packed, targets, kept, skipped = _pairs.pairs_of(sources, size)
+    if len(kept) < len(sources):
+        groups = None if real.groups is None else np.asarray(real.groups)[kept]
+        real = dataclasses.replace(real, images=real.images[kept], illuminants=real.illuminants[kept],
+                                   files=tuple(np.asarray(real.files, object)[kept]) if real.files else (), groups=groups)
+    distinct = len(kept) if real.groups is None else len(np.unique(real.groups))
+    if distinct < 2 * folds:
+        raise ValueError(f"{real.name or 'the real set'}: {distinct} usable real DNG(s) (distinct files; "
+                         f"{len(skipped)} left out) are too few for the neural-ISP task's {folds} folds: it needs at "
+                         f"least {2 * folds}")
+    return real, (packed, targets), [s for i, s in enumerate(sources) if i in set(kept)], skipped
+
+
+def _examples(fold_sets, count: int = EXAMPLES) -> np.ndarray:
+    """The real files shown in the figure: the first test file of each fold, then the next ones."""
+    order = [int(i) for column in zip(*[list(f) for f in fold_sets]) for i in column] if fold_sets else []
+    return np.asarray(order[:count], int)
+
+
+def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEFAULT_ROWS, seeds=(0, 1),
+                 folds: int = 3, n: int = 200, size: int = _pairs.WORKING_SIZE, dngs=None, shipped=None,
+                 lights: Optional[int] = None, illuminant_model: str = "auto", single_light: str = "auto",
+                 training: IspTraining = IspTraining(),
+                 progress: Optional[Callable[[str], None]] = None) -> IspResult:
+    """Train the ISP UNet on each row's pairs, test it on the real pairs (module docstring).
+
+    **Arguments:** `real`: the real set (`real_sets.RealSet`; its `files` are the DNGs, e.g.
+    `load_dng_folder`'s, its thumbnails and illuminants feed the fitted lights and content
+    model); `profile`: the camera's `SensorProfile`; `cg_images`: CG images, sRGB-coded uint8
+    (H, W, 3) or linear float32 (`training_sets.linear_images`); `rows` (see `ROWS`); `seeds`:
+    each seed draws new CG views, lights and UNet initialisations (the folds stay); `folds`;
+    `n`: synthetic training pairs per set; `size`: the target's side; `dngs`: one DNG per real
+    image instead of `real.files` (paths, or `isp_pairs.DngSource` in memory, e.g.
+    `isp_pairs.thumbnail_sources` of the NUS thumbnails); `shipped`: the profile of the
+    'shipped' row (default `profile`); `lights`: fit the lights of 'fitted', 'fitted_no_content'
+    and 'real_profile_light' to this many random training files only (0: the profile's own:
+    the number-of-DNGs ablation, supplement Table S6); `illuminant_model`, `single_light`: the
+    kinds fitted (`g2r-fit-profile --illuminant-model`); `training`: the UNet and its training
+    (`isp_net.IspTraining`); `progress`: a callable taking a line of text, or a
+    `downstream.progress.Progress` (advanced by one per UNet: `trainings(...)` of them).
+
+    **Returns:** an `IspResult`. **Raises:** ValueError for unknown rows or a set too small for
+    the folds (saying how many files it needs).
+    """
+    from g2r_jax.downstream import isp_net
+    from g2r_jax.measure import folds_of
+
+    unknown = [r for r in rows if r not in ROWS]
+    if unknown:
+        raise ValueError(f"unknown rows {unknown}; expected some of {', '.join(ROWS)}")
+    say = progress or (lambda line: None)
+    start = time.perf_counter()
+    real, pairs, sources, skipped = _real_pairs(real, dngs, size, folds)
+    for name, reason in skipped:
+        say(f"left out {name}: {reason}")
+    linear = cg_images if len(cg_images) and np.asarray(cg_images[0]).dtype == np.float32 else _sets.linear_images(cg_images)
+    sets = _RowSets(real, pairs, profile, shipped if shipped is not None else profile, linear, n=n, size=size,
+                    view_size=size // 2, illuminant_model=illuminant_model,
+                    single_light=single_light, lights=lights)
+    fold_sets = folds_of(len(real.images), folds, 0, groups=real.groups)
+    shown = _examples(fold_sets)
+    names = [getattr(sources[i], "name", str(sources[i])) for i in shown]
+    examples = {"names": names, "target": pairs[1][shown], "predicted": {r: np.zeros_like(pairs[1][shown]) for r in rows}}
+    metrics = {(r, m): [] for r in rows for m in METRICS}
+    for seed in seeds:
+        per_fold = {key: [] for key in metrics}
+        for fold, test in enumerate(fold_sets):
+            train = np.setdiff1d(np.arange(len(real.images)), test)
+            training_sets = [sets.build(row, train, fold, seed) for row in rows]
+            models = isp_net.train_many(training_sets, [1000 * seed + fold] * len(rows), training)
+            for row, model in zip(rows, models):
+                predicted = isp_net.predict(model, pairs[0][test])
+                for metric, values in isp_net.measure(predicted, pairs[1][test]).items():
+                    per_fold[(row, metric)].append(values)
+                if seed == seeds[0]:
+                    for k, index in enumerate(shown):
+                        if index in test:
+                            examples["predicted"][row][k] = predicted[int(np.searchsorted(test, index))]
+                advance(progress, 1, f"ISP task: seed {seed}, fold {fold + 1}, {row}")
+            say(f"{real.name}: ISP seed {seed}, fold {fold + 1}/{folds} done ({time.perf_counter() - start:.0f} s)")
+        for key, parts in per_fold.items():
+            metrics[key].append(np.concatenate(parts))
+    return IspResult(camera=real.name, rows=tuple(rows), seeds=tuple(seeds), folds=folds, n=n, size=size,
+                     metrics=metrics, images=len(real.images), seconds=time.perf_counter() - start,
+                     notes=list(dict.fromkeys(sets.notes)), skipped=list(skipped), examples=examples,
+                     training=dataclasses.asdict(training))
