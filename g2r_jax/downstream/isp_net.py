@@ -119,16 +119,17 @@ class IspUNet(eqx.Module):
         return _srgb_encode(_depth_to_space(linear))
 
 
-def init_unet(key, width: int = 8) -> IspUNet:
-    """He-initialised kernels (He et al., ICCV 2015), zero biases, the global branch at zero (it
-    starts as a plain UNet with unit gains); the UNet's last layer at a tenth, so that the linear
-    colour path carries the start. **Arguments:** `key` a PRNG key; `width` channels at full
-    resolution. **Returns:** an `IspUNet`."""
-    shapes = _layer_shapes(width)
+def init_unet(seed: int, width: int = 8) -> IspUNet:
+    """He-initialised kernels (He et al., ICCV 2015; drawn by numpy from `seed`: no compiled
+    program per layer shape), zero biases, the global branch at zero (it starts as a plain UNet
+    with unit gains); the UNet's last layer at a tenth, so that the linear colour path carries the
+    start. **Arguments:** `seed` an int; `width` channels at full resolution. **Returns:** an
+    `IspUNet`."""
+    rng = np.random.default_rng([int(seed), 4242])
     kernels, biases = [], []
-    for i, (k, (n_out, n_in, side)) in enumerate(zip(jax.random.split(key, len(shapes)), shapes)):
+    for i, (n_out, n_in, side) in enumerate(_layer_shapes(width)):
         scale = np.sqrt(2.0 / (n_in * side * side)) * (0.1 if i == 10 else 1.0)
-        kernels.append(scale * jax.random.normal(k, (n_out, n_in, side, side), jnp.float32))
+        kernels.append(jnp.asarray(scale * rng.standard_normal((n_out, n_in, side, side)), jnp.float32))
         biases.append(jnp.zeros(n_out, jnp.float32))
     return IspUNet(tuple(kernels), tuple(biases), jnp.zeros((4 * width + 4, 4 * width + 4), jnp.float32),
                    jnp.zeros(4 * width + 4, jnp.float32))
@@ -178,7 +179,7 @@ def train_many(sets, seeds, training: IspTraining = IspTraining()) -> list:
     counts = [len(p) for p, _ in prepared]
     if min(counts, default=1) < 1:
         raise ValueError("an ISP training set is empty")
-    models = [init_unet(jax.random.PRNGKey(int(s)), training.width) for s in seeds]
+    models = [init_unet(int(s), training.width) for s in seeds]
     if _together(training) and len(sets) > 1:
         capacity = max(counts)
         pad = lambda a: np.concatenate([a, np.repeat(a[:1], capacity - len(a), axis=0)])
