@@ -355,3 +355,42 @@ def test_arguments_are_checked_before_jax_is_imported():
             "status = main(['--burst', '/nonexistent', '--report', '/tmp/x']); print(status, 'jax' in sys.modules)")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.stdout.split() == ["2", "False"] and "--burst /nonexistent" in result.stderr
+
+
+def test_the_isp_task_runs_on_the_real_dngs_with_its_rows_sentence_and_figure(camera_folders, tmp_path, capsys,
+                                                                             monkeypatch):
+    """`g2r-downstream --tasks isp`: the neural ISP on the same real DNGs (a short training here),
+    its rows in report.json, its sentence printed and in report.md, and isp.png beside them."""
+    import functools
+
+    from g2r_jax.downstream import isp
+    from g2r_jax.downstream.isp_net import IspTraining
+
+    monkeypatch.setattr(isp, "run_isp_task", functools.partial(isp.run_isp_task, n=24,
+                                                               training=IspTraining(steps=20, steps_per_round=10)))
+    dngs, cg = camera_folders
+    report = tmp_path / "report"
+    status, out, err = run(capsys, "--measured", dngs, "--cg", cg, "--report", report, "--tasks", "isp",
+                           "--seeds", 1, "--folds", 2, "--quiet")
+    assert status == 1 and "zz_truncated.dng" in err                # the broken file is still named
+    document = json.loads((report / "report.json").read_text())
+    assert set(document["isp"]["rows"]) == {"upi", "fitted", "fitted_no_content", "single", "real",
+                                            "real_profile_light"}
+    for row in document["isp"]["rows"]:
+        assert np.isfinite(document["isp"]["summary"][f"{row}/psnr"]["mean"]), row
+    assert "summary" not in document                                 # no colour check was asked for
+    assert "Result:" in out and "dB" in out
+    assert "## Neural ISP" in (report / "report.md").read_text()
+    assert (report / "isp.png").stat().st_size > 0 or not _has_matplotlib()
+
+
+def test_an_unknown_task_is_refused_by_name(tmp_path, capsys):
+    status, _, err = run(capsys, "--measured", tmp_path, "--cg", tmp_path, "--report", tmp_path / "r", "--tasks",
+                         "colour,denoise")
+    assert status == 2 and "--tasks colour,denoise" in err
+
+
+def _has_matplotlib() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("matplotlib") is not None

@@ -22,6 +22,7 @@ EXAMPLES = """  g2r-downstream --measured my_camera_dngs/ --cg renders/ --report
 """
 DEFAULT_ESTIMATORS = "cnn,histogram"
 ESTIMATOR_NAMES = ("cnn", "moments", "histogram")   # `downstream.estimators.ESTIMATORS`, without loading JAX
+TASK_NAMES = ("colour", "isp")                     # `downstream.check.TASKS`
 LIMITS = {"seeds": (1, 100), "n": (50, 100_000), "folds": (2, 50), "denoiser_steps": (1, 1_000_000)}
 
 
@@ -59,6 +60,10 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--seeds", type=int, default=2, help="repetitions with new synthetic sets")
     parser.add_argument("--n", type=int, default=600, help="synthetic training images per set")
     parser.add_argument("--folds", type=int, default=3, help="cross-validation folds of the real files")
+    parser.add_argument("--tasks", default="colour", metavar="TASKS",
+                        help="comma-separated, what the real DNGs test: colour (illuminant estimators), isp (a small "
+                             "UNet learning RAW -> sRGB, the target developed by LibRaw at each file's AsShotNeutral; "
+                             "adds a few minutes, so not in the default)")
     parser.add_argument("--content-rows", action="store_true",
                         help="add a row: UPI on the same content-adapted CG images as the g2r_jax row (one more "
                              "training set per fold and seed, trained with every estimator): g2r_jax's lead over "
@@ -155,6 +160,9 @@ def check_arguments(args) -> str | None:
     problem = _inputs_problem(args) or _range_problem(args)
     if problem:
         return problem
+    tasks = args.tasks.split(",")
+    if not args.tasks or any(t not in TASK_NAMES for t in tasks):
+        return f"--tasks {args.tasks}: expected some of {', '.join(TASK_NAMES)}"
     unknown = [e for e in args.estimators.split(",") if e not in ESTIMATOR_NAMES]
     if unknown or not args.estimators:
         return f"--estimators {args.estimators}: expected some of {', '.join(ESTIMATOR_NAMES)}"
@@ -182,7 +190,8 @@ def _run(args) -> int:
         result = run_check(args.measured or (), args.cg or (), burst=args.burst, profile=args.profile,
                            estimators=tuple(args.estimators.split(",")), seeds=args.seeds, n=args.n, folds=args.folds,
                            rows=default_rows(args.profile is not None, content_rows=True) if args.content_rows else None,
-                           denoiser_steps=args.denoiser_steps, dry_run=args.dry_run, progress=say, on_problem=bad,
+                           denoiser_steps=args.denoiser_steps, tasks=tuple(args.tasks.split(",")),
+                           dry_run=args.dry_run, progress=say, on_problem=bad,
                            max_pixels=int(args.max_megapixels * 1e6) if args.max_megapixels > 0 else None)
     finally:
         if say is not None:
@@ -191,6 +200,8 @@ def _run(args) -> int:
         for note in result.notes:
             print(f"g2r-downstream: note: {one_line(note)}", file=sys.stderr)
     print("Result: " + result.sentences[0])
+    if result.isp is not None and result.sentences[0] != result.isp.sentence():
+        print("Neural ISP: " + result.isp.sentence())
     if not args.dry_run:
         written = write_report(result, args.report)
         print(f"report: {written[1]} (and {', '.join(p.name for p in written if p != written[1])})")

@@ -15,6 +15,10 @@ from g2r_jax.downstream.inputs import Inputs, read_inputs
 from g2r_jax.io.image_headers import DEFAULT_MAX_PIXELS
 
 DEFAULT_ESTIMATORS = ("cnn", "histogram")
+TASKS = ("colour", "isp")      # on the real DNGs: illuminant estimation, the neural ISP (`downstream.isp`)
+# The ISP task is asked for, not run by default: it trains a UNet per row, fold and seed, which
+# costs more than the rest of the colour check (docs/pages/validation/downstream_isp.md).
+DEFAULT_TASKS = ("colour",)
 
 
 def default_rows(profile_given: bool, content_rows: bool = False) -> tuple:
@@ -95,17 +99,41 @@ def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds,
     return result, document, sentences, markdown
 
 
+def _isp_rows(profile_given: bool) -> tuple:
+    from g2r_jax.downstream import isp
+
+    return tuple(r for r in isp.ROWS if profile_given or r != "shipped")
+
+
+def _isp_check(inputs: Inputs, profile, *, profile_given: bool, seeds, folds, say) -> tuple:
+    """(IspResult, JSON part, sentence, markdown lines) of the neural-ISP task on the real DNGs
+    (`downstream.isp.run_isp_task`, its own number of synthetic pairs)."""
+    from g2r_jax.downstream import isp
+
+    result = isp.run_isp_task(inputs.real, profile, inputs.cg, rows=_isp_rows(profile_given), seeds=seeds,
+                              folds=folds, progress=say)
+    lines = ["## Neural ISP (RAW -> sRGB)", "", result.sentence(), "", result.table(), "",
+             *(f"- {note}" for note in result.notes), "",
+             "Predicted against target on a few real test files: `isp.png`.", ""]
+    return result, result.to_dict(), result.sentence(), lines
+
+
 def _burst_contents(inputs: Inputs) -> tuple:
     return ("cg", "scene") if inputs.cg_paths else ("scene",)
 
 
-def _plan(progress, inputs: Inputs, *, rows, estimators, seeds: int, folds: int, choose: bool) -> None:
+def _plan(progress, inputs: Inputs, *, tasks, rows, estimators, seeds: int, folds: int, choose: bool,
+          profile_given: bool) -> None:
     """Tell `progress` (a `downstream.progress.Progress`) every training the check will run, so
     that its time left covers the whole check."""
-    from g2r_jax.downstream import denoising
+    from g2r_jax.downstream import denoising, isp
     from g2r_jax.downstream.progress import plan
 
-    units = experiment.trainings(rows, estimators, range(seeds), folds) if inputs.real is not None else 0
+    units = 0
+    if inputs.real is not None and "colour" in tasks:
+        units += experiment.trainings(rows, estimators, range(seeds), folds)
+    if inputs.real is not None and "isp" in tasks:
+        units += isp.trainings(_isp_rows(profile_given), range(seeds), folds)
     if inputs.burst is not None:
         units += denoising.trainings(inputs.burst.n, denoising.ROWS, _burst_contents(inputs), range(seeds),
                                      choose=choose)
@@ -137,7 +165,7 @@ def _inputs_document(inputs: Inputs) -> dict:
 def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile=None,
               estimators: Sequence[str] = DEFAULT_ESTIMATORS, rows: Optional[Sequence[str]] = None, seeds: int = 2,
               n: int = 600, folds: int = 3, denoiser_steps: Optional[int] = None, max_pixels: Optional[int] = DEFAULT_MAX_PIXELS,
-              dry_run: bool = False, progress: Optional[Callable[[str], None]] = None, workers: Optional[int] = None,
+              tasks: Sequence[str] = DEFAULT_TASKS, dry_run: bool = False, progress: Optional[Callable[[str], None]] = None, workers: Optional[int] = None,
               on_problem: Optional[Callable[[str, str], None]] = None) -> report.Report:
     """Run the downstream check (see the module docstring).
 
@@ -149,7 +177,9 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     (`experiment.ROWS`; None: `default_rows`); `seeds`: repetitions with new synthetic sets;
     `n`: synthetic training images per set; `folds`: cross-validation folds of the real files;
     `denoiser_steps`: Adam steps per denoiser (None: chosen on a validation split of the burst); `max_pixels`: the largest CG image read;
-    `dry_run`: read and vet every input and the profile, train nothing; `progress`: a callable
+    `tasks`: what the real DNGs are used for, some of `TASKS` ('colour': the illuminant
+    estimators; 'isp': the neural ISP, `downstream.isp`); `dry_run`: read and vet every input and
+    the profile, train nothing; `progress`: a callable
     taking one line of text, or a `downstream.progress.Progress` (a bar of the check's trainings
     with the time left); `workers`: rows of the colour check trained side by side
     (`experiment.illuminant_experiment`); `on_problem(path, reason)`: called as each input is left out.
@@ -162,6 +192,8 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
         raise ValueError("nothing to check: give real DNGs (measured) with CG images, or a burst, or both")
     if measured and not cg:
         raise ValueError("the colour check needs CG images (cg) beside the real DNGs")
+    if not tasks or any(t not in TASKS for t in tasks):
+        raise ValueError(f"tasks {', '.join(map(repr, tasks)) or '(none)'}: expected some of {', '.join(TASKS)}")
     unknown = [r for r in rows or () if r not in experiment.ROWS]
     if unknown:
         raise ValueError(f"unknown rows {', '.join(map(repr, unknown))}; expected some of {', '.join(experiment.ROWS)}")
@@ -184,13 +216,21 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     result = denoised = None
     body = []
     rows = default_rows(profile is not None) if rows is None else tuple(rows)
-    _plan(progress, inputs, rows=rows, estimators=estimators, seeds=seeds, folds=folds, choose=denoiser_steps is None)
-    if inputs.real is not None:
+    _plan(progress, inputs, tasks=tasks, rows=rows, estimators=estimators, seeds=seeds, folds=folds,
+          choose=denoiser_steps is None, profile_given=profile is not None)
+    isp_result = None
+    if inputs.real is not None and "colour" in tasks:
         result, part, said, lines = _colour_check(inputs, sensor, rows=rows, estimators=tuple(estimators),
                                                   seeds=tuple(range(seeds)), n=n, folds=folds, say=say,
                                                   workers=workers)
         document.update(part)
         sentences += said
+        body += lines
+    if inputs.real is not None and "isp" in tasks:
+        isp_result, part, said, lines = _isp_check(inputs, sensor, profile_given=profile is not None,
+                                                   seeds=tuple(range(seeds)), folds=folds, say=say)
+        document["isp"] = part
+        sentences.append(said)
         body += lines
     if inputs.burst is not None:
         product = sensor if profile is not None else with_files_content(sensor, inputs)
@@ -201,8 +241,8 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
         body += lines
     markdown += [*sentences, "", *body]
     return report.Report(camera=document["camera"], sentences=sentences, document=document,
-                         markdown="\n".join(markdown), result=result, denoising=denoised, problems=inputs.problems,
-                         notes=inputs.notes)
+                         markdown="\n".join(markdown), result=result, denoising=denoised, isp=isp_result,
+                         problems=inputs.problems, notes=inputs.notes)
 
 
 def _dry_run_sentence(inputs: Inputs) -> str:

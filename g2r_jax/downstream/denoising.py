@@ -70,7 +70,10 @@ ROW_NAMES = {"upi": "UPI noise (Brooks 2019)", "shipped": "g2r_jax shipped profi
              "g2r_jax fitted from the burst", "truth": "photon-transfer truth", "real": "real pairs (cross-validated)"}
 CONTENT_NAMES = {"cg": "CG content", "scene": "real scene (content-equal)"}
 
-MAX_WORKERS = 4           # denoisers trained side by side (threads): one keeps about one core busy
+# Denoisers trained side by side (threads) by default: none. XLA's convolutions of one training
+# already use both cores: a dim 8-frame burst (benchmarks/downstream_denoising.py --dim --seeds 0 1
+# --steps 300) took 128 s one at a time and 159 s with 4 threads, the same PSNRs.
+MAX_WORKERS = 1
 MAX_STEPS = 3000          # the cap of the step-count selection (`choose_steps`)
 PATIENCE = 3              # rounds of 100 steps without a gain of more than MIN_GAIN_DB end it
 MIN_GAIN_DB = 0.02

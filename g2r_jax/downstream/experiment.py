@@ -171,9 +171,9 @@ class _Sets:
         the rows are built side by side, so that no two threads make the same thing."""
         from g2r_jax.downstream import content_rows
 
-        if any(r != "real" for r in rows):
+        if set(rows) & set(SYNTHETIC_CG_ROWS + CONTENT_ROWS):
             self.views(seed)
-        if any(r not in ("real", "upi", "shipped", "single") for r in rows):
+        if set(rows) & {"fitted", "fitted_no_content", "published", "real_profile_light", "other_content"}:
             self.fitted(train, fold, seed)
         if "fitted" in rows or "upi_content" in rows:
             content_rows.prepare(self, train, fold, seed)

@@ -160,7 +160,8 @@ class Report:
     """One downstream check. `camera`; `sentences`: the result in words, one per estimator (and
     one for the burst); `document`: everything as JSON-able data (report.json); `markdown`: the
     report page (report.md); `result`: the `ExperimentResult` (None without a colour check or in
-    a dry run); `denoising`: the burst check's result or None; `problems`: (path, reason) of each
+    a dry run); `denoising`: the burst check's result or None; `isp`: the neural-ISP task's
+    `downstream.isp.IspResult` or None; `problems`: (path, reason) of each
     input left out; `notes`: lines a user should know (files with the same pixels)."""
 
     camera: str
@@ -169,6 +170,7 @@ class Report:
     markdown: str
     result: ExperimentResult | None = None
     denoising: object = None
+    isp: object = None
     problems: list = dataclasses.field(default_factory=list)
     notes: list = dataclasses.field(default_factory=list)
 
@@ -194,7 +196,8 @@ def _finite(value):
 
 
 def write_report(report: Report, folder) -> list[Path]:
-    """Write report.json, report.md and (with a colour check and matplotlib) errors.png into
+    """Write report.json, report.md and (with matplotlib) errors.png of a colour check and isp.png
+    of an ISP task into
     `folder` (created if missing), each atomically.
 
     **Arguments:** `report`: a `Report`; `folder`: a path. **Returns:** the paths written.
@@ -208,5 +211,7 @@ def write_report(report: Report, folder) -> list[Path]:
     atomic_write_bytes(written[1], report.markdown.encode())
     if report.result is not None and plot(report.result, folder / "errors.png"):
         written.append(folder / "errors.png")
+    if report.isp is not None and report.isp.figure(folder / "isp.png"):
+        written.append(folder / "isp.png")
     return written
 
