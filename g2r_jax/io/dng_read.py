@@ -20,6 +20,7 @@ import logging
 import math
 import re
 import threading
+import warnings
 from pathlib import Path
 from typing import Optional
 
@@ -27,7 +28,7 @@ import numpy as np
 
 from g2r_jax.io.dng_info import DngError, DngInfo
 from g2r_jax.io.illuminant_data import parse_illuminant_data
-from g2r_jax.io.pixel_layout import bits_problem, decoded_problem, layout_problem, stored_values_problem
+from g2r_jax.io.pixel_layout import bits_problem, decoded_finding, layout_problem, stored_values_problem
 from g2r_jax.io.raw_compression import undecodable_reason
 from g2r_jax.io.tag_checks import check_dng_tags
 
@@ -639,8 +640,11 @@ def read_dng_pixels(path, info: Optional[DngInfo] = None) -> np.ndarray:
     Raises `DngError` naming the file for: non-Bayer or LinearRaw files, pixel data found missing
     or truncated by the structural check of `read_dng_info` (LibRaw itself would silently return
     zeros), anything LibRaw refuses to decode, a decoded frame smaller than the tagged size, and
-    a decoded raster its tags cannot describe (`pixel_layout.decoded_problem`: most pixels above
-    WhiteLevel, a constant raster outside black..white, zeros where the black level is high).
+    a decoded raster its tags cannot describe (`pixel_layout.decoded_finding`: most pixels above
+    WhiteLevel, a constant raster outside black..white, zeros where the black level is high, green
+    sites out of phase with the CFAPattern by two agreeing tests). What that check only suspects
+    (one of the two phase tests) is added to `info.warnings` and issued as a `UserWarning` naming
+    the file (the commands print it as one line), and the pixels are returned.
     """
     import rawpy
 
@@ -689,7 +693,10 @@ def read_dng_pixels(path, info: Optional[DngInfo] = None) -> np.ndarray:
     if libraw_pattern is not None and libraw_pattern != tuple(info.cfa_pattern):
         raise DngError(path, f"LibRaw's CFA colours {libraw_pattern} at the active-area origin "
                              f"disagree with the CFAPattern tag {tuple(info.cfa_pattern)}")
-    problem = decoded_problem(mosaic, info.black_level, info.white_level, info.cfa_pattern)
-    if problem is not None:
-        raise DngError(path, problem)
+    found = decoded_finding(mosaic, info.black_level, info.white_level, info.cfa_pattern)
+    if found.refusal is not None:
+        raise DngError(path, found.refusal)
+    if found.warning is not None and found.warning not in info.warnings:
+        info.warnings.append(found.warning)
+        warnings.warn(f"{path}: {found.warning}", stacklevel=2)   # the commands print it as one line
     return mosaic

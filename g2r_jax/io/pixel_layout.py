@@ -20,6 +20,8 @@ Two kinds of finding:
   raises;
 - a *warning* (`LayoutProblem.warning`): pixel data missing or cut short, the tags themselves
   consistent (e.g. a header-only DNG); the tags stay usable, pixel decoding is refused.
+A decoded raster (`decoded_finding`) gives a refusal, or a warning when only part of the evidence
+that its green sites are out of phase holds (the pixels are then used as tagged).
 """
 
 from __future__ import annotations
@@ -31,7 +33,8 @@ from typing import Optional
 import numpy as np
 
 __all__ = ["LayoutProblem", "layout_problem", "stored_values_problem", "bits_problem", "decoded_problem",
-           "MAX_SHARE_ABOVE_WHITE", "FAR_ABOVE_WHITE", "ZERO_FILL_SHARE", "ZERO_FILL_MIN_BLACK", "GREEN_PHASE_RATIO"]
+           "decoded_finding", "MAX_SHARE_ABOVE_WHITE", "FAR_ABOVE_WHITE", "ZERO_FILL_SHARE", "ZERO_FILL_MIN_BLACK",
+           "GREEN_PHASE_RATIO", "GREEN_SHARED_RATIO", "GREEN_DISTRIBUTION_RATIO", "GREEN_SPLIT_SHARE"]
 
 _OFFSET_TAGS = {"strips": (273, 279), "tiles": (324, 325)}   # (offsets, byte counts)
 _HEADER_BYTES = 8            # TIFF header: byte order, 42, offset of IFD0
@@ -47,7 +50,21 @@ FAR_ABOVE_WHITE = 1.5          # "far above": over 1.5 x WhiteLevel. Some camera
                                # linear range and their highlights run past it, never this far
 ZERO_FILL_SHARE = 0.5          # LibRaw fills data it cannot find with zeros
 ZERO_FILL_MIN_BLACK = 16.0     # below this black level, zeros can be real dark pixels
-GREEN_PHASE_RATIO = 2.0        # measured: 0.11 and 0.26 on a g2r-convert example and a GoPro frame, 4-7 shifted
+# The green-phase check (`_green_phase_finding`, issue 44). Measured on 1,920 valid rasters (10 kinds of CG
+# content converted with 6 shipped profiles, each rewritten in the 4 CFA phases), the three
+# `g2r-convert --example` files and the real GoPro HERO6 frame, and each of them shifted by one
+# pixel and by one row, both ways (benchmarks/valid_reader.py makes the same kinds: 5,281 valid files,
+# 0 refused):
+GREEN_PHASE_RATIO = 1.5        # tagged greens' gap / their own diagonal step: valid files at most 1.08 (lines
+                               # 1-2 px wide aside), the shifted examples and GoPro 3.9-5.5
+GREEN_SHARED_RATIO = 0.9       # the other pair's gap / its step: content that is noise at the pixel scale
+                               # gives 0.97-1.03 (flat fields, white noise), the shifted examples and GoPro 0.34-0.88
+GREEN_DISTRIBUTION_RATIO = 3.0 # tagged pair's quantile distance / (other pair's + floor): valid files at most
+                               # 0.98 (lines aside), the shifted examples and GoPro 11.5-55
+GREEN_SPLIT_SHARE = 0.02       # the GoPro's two greens are distributed 0.25 % of their level apart (one site's
+                               # two halves 0.15 %): greens of a real sensor may differ, 8x that is allowed
+_QUANTILES = np.linspace(0.02, 0.98, 49)
+_QUANTILE_SAMPLES = 1 << 17    # values per site the quantiles are taken from (an evenly spaced grid)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -342,51 +359,149 @@ def bits_problem(bits: int, white_level: float, has_linearization_table: bool) -
             "the tags disagree with each other")
 
 
-def _green_phase_problem(mosaic: np.ndarray, cfa_pattern) -> Optional[str]:
-    """The two green sites of a 2x2 Bayer tile sample the same filter a pixel apart, so they
-    differ less than the other two sites (red against blue) on any image with content; data
-    read one pixel or one row off puts red and blue where the tags say green. Refused when the
-    tagged greens differ more than `GREEN_PHASE_RATIO` times as much as the other pair."""
-    pattern = tuple(int(c) for c in cfa_pattern or ())
-    if len(pattern) != 4 or pattern.count(1) != 2 or min(mosaic.shape) < 4:
-        return None
+@dataclasses.dataclass(frozen=True)
+class _PhaseEvidence:
+    """What a 2x2 Bayer raster's two diagonals say about which one holds the greens (one pair
+    each: the tagged greens, the other diagonal's red and blue)."""
+
+    tagged_steps: float     # tagged pair's pixel gap / its sites' own diagonal step
+    other_steps: float      # the same for the other pair (inf when that pair does not vary)
+    tagged_distance: float  # mean distance of the tagged pair's quantiles (DN)
+    other_distance: float
+    floor: float            # quantile distance of one site's two halves, + 1 DN: sampling and content
+    tagged_level: float     # mean of the tagged pair's quantiles above black (DN)
+
+    def pixel_test(self) -> bool:
+        return self.tagged_steps > GREEN_PHASE_RATIO and self.other_steps < GREEN_SHARED_RATIO
+
+    def distribution_test(self) -> bool:
+        return (self.tagged_distance > GREEN_DISTRIBUTION_RATIO * (self.other_distance + self.floor)
+                and self.tagged_distance > GREEN_SPLIT_SHARE * max(self.tagged_level, 0.0))
+
+
+def _site_planes(mosaic: np.ndarray, black_level) -> list:
+    """The four sites of the 2x2 tile as float planes above their black level, row-major."""
+    black = np.asarray(black_level, np.float64).ravel()
+    black = black if black.size == 4 else np.full(4, float(black.min()) if black.size else 0.0)
     height, width = mosaic.shape[0] // 2 * 2, mosaic.shape[1] // 2 * 2
-    sites = [mosaic[i:height:2, j:width:2].astype(np.float64) for i in (0, 1) for j in (0, 1)]
+    return [mosaic[i:height:2, j:width:2].astype(np.float64) - black[2 * i + j] for i in (0, 1) for j in (0, 1)]
+
+
+def _diagonal_step(plane: np.ndarray) -> float:
+    """Mean absolute difference of one site between diagonally neighbouring tiles (2 px each way)."""
+    falling = np.mean(np.abs(plane[1:, 1:] - plane[:-1, :-1]))
+    rising = np.mean(np.abs(plane[1:, :-1] - plane[:-1, 1:]))
+    return float(falling + rising) / 2
+
+
+def _quantile_distance(first: np.ndarray, second: np.ndarray) -> float:
+    """Mean absolute difference of two planes' 2nd..98th percentiles: the 1-Wasserstein distance of
+    their distributions, which on the line is the mean gap between the quantile functions (Villani,
+    *Topics in Optimal Transportation*, 2003, ch. 2), tails trimmed. Planes of more than
+    `_QUANTILE_SAMPLES` values give an evenly spaced grid of them (the same places in both)."""
+    step = max(1, math.ceil(math.sqrt(max(first.size, second.size) / _QUANTILE_SAMPLES)))
+    return float(np.mean(np.abs(np.quantile(first[::step, ::step], _QUANTILES)
+                                - np.quantile(second[::step, ::step], _QUANTILES))))
+
+
+def _phase_evidence(sites: list, green: list, other: list) -> _PhaseEvidence:
+    def steps(pair):
+        gap = float(np.mean(np.abs(sites[pair[0]] - sites[pair[1]])))
+        step = (_diagonal_step(sites[pair[0]]) + _diagonal_step(sites[pair[1]])) / 2
+        return gap, step
+    tagged_gap, tagged_step = steps(green)
+    other_gap, other_step = steps(other)
+    floor = 1.0 + float(np.mean([_quantile_distance(plane[0::2], plane[1::2]) for plane in sites]))
+    return _PhaseEvidence(
+        tagged_steps=tagged_gap / max(tagged_step, 1.0),
+        other_steps=other_gap / other_step if other_step > 1.0 else math.inf,
+        tagged_distance=_quantile_distance(sites[green[0]], sites[green[1]]),
+        other_distance=_quantile_distance(sites[other[0]], sites[other[1]]),
+        floor=floor, tagged_level=float(np.mean([sites[k].mean() for k in green])))
+
+
+def _green_phase_finding(mosaic: np.ndarray, black_level, cfa_pattern) -> LayoutProblem:
+    """Are the greens where `cfa_pattern` says? Data read one pixel or one row off (offsets or
+    width wrong) puts the other diagonal of the 2x2 tile, red and blue, where the tags say green.
+
+    Two tests, each asking which diagonal holds the two samples of one filter:
+    - pixel scale: the tagged pair's mean gap, over the mean step of each of its sites between
+      diagonally neighbouring tiles (2 px away), is above `GREEN_PHASE_RATIO` (it differs more
+      than one colour does from itself), while the other pair's is below `GREEN_SHARED_RATIO`
+      (it shares the content at the pixel scale: closer than 2 px steps, which content that is
+      noise at that scale never is);
+    - distributions: the two greens sample one filter, so their values have one distribution
+      whatever the content (smooth or not), while red and blue differ under any light that is not
+      neutral in raw: the tagged pair's quantiles lie `GREEN_DISTRIBUTION_RATIO` times farther
+      apart than the other pair's (plus a floor: the distance between one site's two halves, the
+      spread of sampling and content), and more than `GREEN_SPLIT_SHARE` of their level apart
+      (what a real sensor's two greens may differ by).
+    Both tests must point to the other diagonal for a refusal. Content with detail at the pixel
+    pitch (lines 1-2 px wide) can make either test point there on a sound file: 2x2-periodic
+    content whose colours happen to match a shifted flat field is, in the raster, exactly that
+    field shifted. One test alone gives a warning and the pixels are used; the distributions
+    alone give none when both pairs differ more than one colour from itself (detail at the pixel
+    pitch: the two greens do not see the same content, so their distributions need not agree).
+    Neither test sees a shift of content whose red and blue read alike (a light that makes them
+    equal in raw): the two diagonals then look the same, and such a shift passes without a word.
+    Before issue 44 the test was the tagged greens' gap over red against blue, above 2.0: it
+    refused white noise, whose two greens are as unrelated as any two pixels."""
+    pattern = tuple(int(c) for c in cfa_pattern or ())
+    if len(pattern) != 4 or pattern.count(1) != 2 or min(mosaic.shape) < 8:
+        return LayoutProblem()
     green = [k for k in range(4) if pattern[k] == 1]
     other = [k for k in range(4) if pattern[k] != 1]
-    green_gap = float(np.mean(np.abs(sites[green[0]] - sites[green[1]])))
-    other_gap = float(np.mean(np.abs(sites[other[0]] - sites[other[1]])))
-    if green_gap > GREEN_PHASE_RATIO * max(other_gap, 1.0):
-        return (f"the tagged green sites differ {green_gap / max(other_gap, 1.0):.1f} times as much as red "
-                "and blue: the pixel data is shifted against its CFAPattern (offsets or width wrong)")
-    return None
+    if green not in ([0, 3], [1, 2]):   # greens side by side: not a Bayer tile, nothing to test
+        return LayoutProblem()
+    found = _phase_evidence(_site_planes(mosaic, black_level), green, other)
+    pixel, distribution = found.pixel_test(), found.distribution_test()
+    if pixel and distribution:
+        return LayoutProblem(refusal=(
+            f"the pixel data is shifted against its CFAPattern (offsets or width wrong): the tagged green sites "
+            f"differ {found.tagged_steps:.1f} times as much as one colour from itself 2 px away, red and blue match "
+            f"({found.other_steps:.2f}), and their values are distributed {found.tagged_distance:.0f} DN apart "
+            f"against {found.other_distance:.0f} DN"))
+    detail = found.tagged_steps > GREEN_PHASE_RATIO and found.other_steps > GREEN_PHASE_RATIO
+    if pixel or (distribution and not detail):
+        which = "pixel differences" if pixel else "value distributions"
+        return LayoutProblem(warning=(
+            f"the pixel data may be shifted against its CFAPattern: the {which} of the green sites fit the "
+            "other diagonal better, the other test does not confirm it (content with detail at the pixel "
+            "pitch, e.g. lines 1-2 px wide, looks the same); pixels used as tagged"))
+    return LayoutProblem()
 
 
 def decoded_problem(mosaic: np.ndarray, black_level, white_level: float, cfa_pattern=None) -> Optional[str]:
+    """The refusal of `decoded_finding`, or None (its warnings dropped)."""
+    return decoded_finding(mosaic, black_level, white_level, cfa_pattern).refusal
+
+
+def decoded_finding(mosaic: np.ndarray, black_level, white_level: float, cfa_pattern=None) -> LayoutProblem:
     """A decoded raster its tags cannot describe: values over `FAR_ABOVE_WHITE` x WhiteLevel in more
     than `MAX_SHARE_ABOVE_WHITE` of the pixels (bytes read at the wrong place or width), a constant
     raster outside black..white, zeros in most pixels of a camera whose black level is at least
     `ZERO_FILL_MIN_BLACK` (LibRaw's fill for data it could not find) or in its first two pixels
     (offsets moved back into the zero padding before the data: the image shifted by whole CFA
-    tiles, which the phase check cannot see), or the CFA's green sites
-    out of phase with `cfa_pattern` (`_green_phase_problem`)."""
+    tiles, which the phase check cannot see), or the CFA's green sites out of phase with
+    `cfa_pattern` (`_green_phase_finding`: refused when two tests agree, a warning when one
+    points there). Returns a `LayoutProblem` with a refusal, a warning or neither."""
     if mosaic.size == 0:
-        return "decoded raster is empty"
+        return LayoutProblem(refusal="decoded raster is empty")
     black = float(np.min(np.asarray(black_level, np.float64)))
     largest, smallest = int(mosaic.max()), int(mosaic.min())
     if largest == smallest and not black <= largest <= white_level:
-        return (f"every decoded pixel is {largest}, outside the tagged range {black:g}..{white_level:g}: "
-                "the pixel data is not where the tags say")
+        return LayoutProblem(refusal=f"every decoded pixel is {largest}, outside the tagged range "
+                                     f"{black:g}..{white_level:g}: the pixel data is not where the tags say")
     above = float(np.count_nonzero(mosaic > FAR_ABOVE_WHITE * white_level)) / mosaic.size
     if above > MAX_SHARE_ABOVE_WHITE:
-        return (f"{100 * above:.1f} % of the decoded pixels exceed WhiteLevel {white_level:g} by half or more "
-                f"(largest {largest}): the pixel data does not match its tags")
+        return LayoutProblem(refusal=f"{100 * above:.1f} % of the decoded pixels exceed WhiteLevel {white_level:g} "
+                                     f"by half or more (largest {largest}): the pixel data does not match its tags")
     if black >= ZERO_FILL_MIN_BLACK and mosaic.shape[1] >= 2 and not mosaic[0, :2].any():
-        return (f"the raster starts with zeros, far below the black level {black:g}: the strip or tile offsets "
-                "point before the pixel data")
+        return LayoutProblem(refusal=f"the raster starts with zeros, far below the black level {black:g}: the strip or "
+                                     "tile offsets point before the pixel data")
     if black >= ZERO_FILL_MIN_BLACK:
         zeros = float(np.count_nonzero(mosaic == 0)) / mosaic.size
         if zeros > ZERO_FILL_SHARE:
-            return (f"{100 * zeros:.0f} % of the decoded pixels are 0, far below the black level {black:g}: "
-                    "pixel data missing")
-    return _green_phase_problem(mosaic, cfa_pattern)
+            return LayoutProblem(refusal=f"{100 * zeros:.0f} % of the decoded pixels are 0, far below the black level "
+                                         f"{black:g}: pixel data missing")
+    return _green_phase_finding(mosaic, black_level, cfa_pattern)
