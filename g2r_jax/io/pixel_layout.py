@@ -368,8 +368,8 @@ class _PhaseEvidence:
     other_steps: float      # the same for the other pair (inf when that pair does not vary)
     tagged_distance: float  # mean distance of the tagged pair's quantiles (DN)
     other_distance: float
-    floor: float            # quantile distance of one site's two halves, + 1 DN: sampling and content
-    tagged_level: float     # mean of the tagged pair's quantiles above black (DN)
+    floor: float            # quantile distance of one site's two halves (alternate rows of tiles), + 1 DN
+    tagged_level: float     # mean of the tagged pair's values above black (DN)
 
     def pixel_test(self) -> bool:
         return self.tagged_steps > GREEN_PHASE_RATIO and self.other_steps < GREEN_SHARED_RATIO
@@ -405,6 +405,8 @@ def _quantile_distance(first: np.ndarray, second: np.ndarray) -> float:
 
 
 def _phase_evidence(sites: list, green: list, other: list) -> _PhaseEvidence:
+    """The two tests' figures for the site planes `sites`, `green` and `other` the indices of the
+    tagged greens and of the other diagonal (see `_green_phase_finding`)."""
     def steps(pair):
         gap = float(np.mean(np.abs(sites[pair[0]] - sites[pair[1]])))
         step = (_diagonal_step(sites[pair[0]]) + _diagonal_step(sites[pair[1]])) / 2
