@@ -155,6 +155,26 @@ def _arguments(argv):
     return args
 
 
+def _write(args, results, lines, total) -> None:
+    """The markdown and JSON of the cameras done so far (rewritten after each camera)."""
+    if args.markdown:
+        args.markdown.parent.mkdir(parents=True, exist_ok=True)
+        args.markdown.write_text("\n".join(lines) + "\n")
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        document = {name: {str(k): r.to_dict() for k, r in parts.items()} for name, parts in results.items()}
+        args.json.write_text(json.dumps({"seconds": total, "arguments": {k: str(v) for k, v in vars(args).items()},
+                                         "cameras": document}, indent=1))
+
+
+def _closing(args, results, total) -> list:
+    lines = ["## All cameras", "", summary_table(results), ""]
+    if args.lights:
+        lines += ["## Number of DNGs (PSNR dB / ΔE2000)", "", curve_table(results, args.lights), ""]
+    return lines + [f"Total {total / 60:.1f} min; UNet width {args.width}, {args.steps} steps of {args.batch}, "
+                    f"learning rate {args.learning_rate:g}; n = {args.n}; seeds 0-{args.seeds - 1}."]
+
+
 def main(argv=None) -> int:
     from PIL import Image
 
@@ -179,21 +199,11 @@ def main(argv=None) -> int:
         if args.figures:
             args.figures.mkdir(parents=True, exist_ok=True)
             result.figure(args.figures / f"isp_{name}.png")
+        _write(args, results, lines + _closing(args, results, time.perf_counter() - start), time.perf_counter() - start)
     total = time.perf_counter() - start
-    lines += ["## All cameras", "", summary_table(results), ""]
-    if args.lights:
-        lines += ["## Number of DNGs (PSNR dB / ΔE2000)", "", curve_table(results, args.lights), ""]
-    lines += [f"Total {total / 60:.1f} min; UNet width {args.width}, {args.steps} steps of {args.batch}, learning rate "
-              f"{args.learning_rate:g}; n = {args.n}; seeds 0-{args.seeds - 1}."]
-    print("\n".join(lines[lines.index("## All cameras"):]))
-    if args.markdown:
-        args.markdown.parent.mkdir(parents=True, exist_ok=True)
-        args.markdown.write_text("\n".join(lines) + "\n")
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        document = {name: {str(k): r.to_dict() for k, r in parts.items()} for name, parts in results.items()}
-        args.json.write_text(json.dumps({"seconds": total, "arguments": {k: str(v) for k, v in vars(args).items()},
-                                         "cameras": document}, indent=1))
+    closing = _closing(args, results, total)
+    print("\n".join(closing))
+    _write(args, results, lines + closing, total)
     return 0
 
 
