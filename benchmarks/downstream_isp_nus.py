@@ -15,11 +15,12 @@ shipped profile carries (`shipped_content_model`, applied by default).
     python benchmarks/downstream_isp_nus.py [--cameras Canon600D,NikonD40] [--seeds 3] [--n 200]
         [--rows upi,fitted,...] [--steps 600] [--lights 0,1,10,all] [--json out/isp_nus.json]
         [--markdown out/isp_nus.md] [--figures out/isp_figures]
+    python benchmarks/downstream_isp_nus.py --summary out/a.json,out/b.json [--lights 0,1,10,all]
 
 `--lights` adds the few-DNG curve (Table S6): 'fitted' with its lights fitted to 1 or 10 random
 training files (content model as in 'fitted'), 0 = the shipped profile's lights and content
 model (the 'shipped' row), all = the 'fitted' row. Prints one table per camera as it finishes,
-then the summary across cameras. LibRaw runs single-threaded (OMP_NUM_THREADS=1 unless set):
+then the summary across cameras (`--summary` prints those of earlier runs' JSON files). LibRaw runs single-threaded (OMP_NUM_THREADS=1 unless set):
 on 64 x 64 files its threads only wait for each other on a shared 2-core machine.
 """
 
@@ -73,29 +74,28 @@ def run_camera(name: str, args, cg, say):
     return out
 
 
-def summary_table(results) -> str:
-    """Markdown: per camera, each row's mean PSNR / SSIM / ΔE2000; then the mean of the cameras,
-    the fitted / real ΔE ratio and the PSNR gap."""
-    from g2r_jax.downstream.isp import METRICS
+def _mean(document, camera, part, row, metric):
+    """The mean of `metric` for `row` of one camera's run `part` ('all', or a number of lights)."""
+    return document[camera][part]["summary"][f"{row}/{metric}"]["mean"]
 
-    rows = next(iter(results.values()))["all"].rows
+
+def summary_table(document) -> str:
+    """Markdown: per camera, each row's mean PSNR / SSIM / ΔE2000; then the mean of the cameras,
+    the fitted / real ΔE ratio and the PSNR gaps. `document`: {camera: {'all': IspResult.to_dict()}}."""
+    rows = next(iter(document.values()))["all"]["rows"]
     head = "| camera | " + " | ".join(rows) + " | fitted / real ΔE | real - fitted PSNR | fitted - UPI PSNR |"
     out = ["Cells: PSNR dB / SSIM / ΔE2000, mean over images, folds and seeds.", "", head,
            "|---|" + "---|" * (len(rows) + 3)]
-    means = {r: {m: [] for m in METRICS} for r in rows}
-    for name, parts in results.items():
-        result = parts["all"]
-        cells = []
+    value = {}
+    for camera in document:
         for r in rows:
-            s = {m: result.summary(r, m)["mean"] for m in METRICS}
-            for m in METRICS:
-                means[r][m].append(s[m])
-            cells.append(f"{s['psnr']:.2f} / {s['ssim']:.3f} / {s['delta_e']:.2f}")
-        out.append(f"| {name} | " + " | ".join(cells) + " | " + _ratios(lambda r, m: result.summary(r, m)["mean"], rows) + " |")
-    cells = [f"{np.mean(means[r]['psnr']):.2f} / {np.mean(means[r]['ssim']):.3f} / {np.mean(means[r]['delta_e']):.2f}"
-             for r in rows]
-    out.append("| **mean of cameras** | " + " | ".join(cells) + " | "
-               + _ratios(lambda r, m: float(np.mean(means[r][m])), rows) + " |")
+            for m in ("psnr", "ssim", "delta_e"):
+                value[(camera, r, m)] = _mean(document, camera, "all", r, m)
+    for camera in list(document) + ["**mean of cameras**"]:
+        get = ((lambda r, m, c=camera: value[(c, r, m)]) if camera in document
+               else (lambda r, m: float(np.mean([value[(c, r, m)] for c in document]))))
+        cells = [f"{get(r, 'psnr'):.2f} / {get(r, 'ssim'):.3f} / {get(r, 'delta_e'):.2f}" for r in rows]
+        out.append(f"| {camera} | " + " | ".join(cells) + " | " + _ratios(get, rows) + " |")
     return "\n".join(out)
 
 
@@ -110,26 +110,45 @@ def _ratios(value, rows) -> str:
     return " | ".join(cells)
 
 
-def curve_table(results, lights) -> str:
+def curve_table(document, lights) -> str:
     """Markdown: the few-DNG curve, PSNR / ΔE2000 of g2r_jax by the number of DNGs its lights come
     from (mean over seeds), per camera and the mean of the cameras."""
     labels = [("0 (shipped)" if c == 0 else "all" if c is None else str(c)) for c in lights]
     out = ["| camera | " + " | ".join(f"{label} DNGs" for label in labels) + " |", "|---|" + "---|" * len(lights)]
     columns = {label: [] for label in labels}
-    for name, parts in results.items():
+    for camera, parts in document.items():
         cells = []
         for count, label in zip(lights, labels):
-            result, row = ((parts["all"], "shipped") if count == 0 else (parts["all"], "fitted") if count is None
-                           else (parts[count], "fitted"))
-            if row not in result.rows:
+            part, row = ("all", "shipped") if count == 0 else ("all", "fitted") if count is None else (str(count), "fitted")
+            if part not in parts or row not in parts[part]["rows"]:
                 cells.append("")
                 continue
-            pair = (result.summary(row, "psnr")["mean"], result.summary(row, "delta_e")["mean"])
+            pair = (_mean(document, camera, part, row, "psnr"), _mean(document, camera, part, row, "delta_e"))
             columns[label].append(pair)
             cells.append(f"{pair[0]:.2f} / {pair[1]:.2f}")
-        out.append(f"| {name} | " + " | ".join(cells) + " |")
+        out.append(f"| {camera} | " + " | ".join(cells) + " |")
     out.append("| **mean** | " + " | ".join(f"{np.mean([p[0] for p in v]):.2f} / {np.mean([p[1] for p in v]):.2f}"
                                          if v else "" for v in columns.values()) + " |")
+    return "\n".join(out)
+
+
+def targets_table(document) -> str:
+    """Markdown: the issue's done-when checks per camera (fitted against UPI: the difference of the
+    means, and whether the seeds' ranges are apart) and on the mean of the cameras."""
+    def apart(camera, metric):
+        f = document[camera]["all"]["summary"][f"fitted/{metric}"]
+        u = document[camera]["all"]["summary"][f"upi/{metric}"]
+        return f["seed_min"] > u["seed_max"] if metric == "psnr" else f["seed_max"] < u["seed_min"]
+
+    out = ["| camera | fitted - UPI PSNR | seeds apart | fitted / UPI ΔE | seeds apart | fitted / real ΔE | "
+           "real - fitted PSNR | shipped / real ΔE |", "|---|---|---|---|---|---|---|---|"]
+    for camera in document:
+        v = lambda r, m: _mean(document, camera, "all", r, m)
+        out.append(f"| {camera} | {v('fitted', 'psnr') - v('upi', 'psnr'):+.2f} dB | {'yes' if apart(camera, 'psnr') else 'no'} | "
+                   f"{v('fitted', 'delta_e') / v('upi', 'delta_e'):.2f}x | {'yes' if apart(camera, 'delta_e') else 'no'} | "
+                   f"{v('fitted', 'delta_e') / v('real', 'delta_e'):.2f}x | {v('real', 'psnr') - v('fitted', 'psnr'):+.2f} dB | "
+                   + (f"{v('shipped', 'delta_e') / v('real', 'delta_e'):.2f}x |" if "shipped" in document[camera]["all"]["rows"]
+                      else " |"))
     return "\n".join(out)
 
 
@@ -149,30 +168,45 @@ def _arguments(argv):
     parser.add_argument("--json", type=Path)
     parser.add_argument("--markdown", type=Path)
     parser.add_argument("--figures", type=Path, help="a folder: one PNG of predictions per camera")
+    parser.add_argument("--summary", help="comma-separated JSON files of earlier runs: print their tables, run nothing")
     args = parser.parse_args(argv)
     args.rows = tuple(args.rows.split(","))
     args.lights = [None if v == "all" else int(v) for v in args.lights.split(",") if v]
     return args
 
 
-def _write(args, results, lines, total) -> None:
+def _document(results) -> dict:
+    return {name: {str(k): r.to_dict() for k, r in parts.items()} for name, parts in results.items()}
+
+
+def _write(args, document, lines, total) -> None:
     """The markdown and JSON of the cameras done so far (rewritten after each camera)."""
     if args.markdown:
         args.markdown.parent.mkdir(parents=True, exist_ok=True)
         args.markdown.write_text("\n".join(lines) + "\n")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        document = {name: {str(k): r.to_dict() for k, r in parts.items()} for name, parts in results.items()}
         args.json.write_text(json.dumps({"seconds": total, "arguments": {k: str(v) for k, v in vars(args).items()},
                                          "cameras": document}, indent=1))
 
 
-def _closing(args, results, total) -> list:
-    lines = ["## All cameras", "", summary_table(results), ""]
+def _closing(args, document, total) -> list:
+    lines = ["## All cameras", "", summary_table(document), "", "## The issue's targets", "", targets_table(document), ""]
     if args.lights:
-        lines += ["## Number of DNGs (PSNR dB / ΔE2000)", "", curve_table(results, args.lights), ""]
+        lines += ["## Number of DNGs (PSNR dB / ΔE2000)", "", curve_table(document, args.lights), ""]
     return lines + [f"Total {total / 60:.1f} min; UNet width {args.width}, {args.steps} steps of {args.batch}, "
                     f"learning rate {args.learning_rate:g}; n = {args.n}; seeds 0-{args.seeds - 1}."]
+
+
+def _summary(args) -> int:
+    """Print the tables of earlier runs' JSON files (cameras merged, a later file winning)."""
+    document, seconds = {}, 0.0
+    for path in args.summary.split(","):
+        loaded = json.loads(Path(path).read_text())
+        document.update(loaded["cameras"])
+        seconds += loaded["seconds"]
+    print("\n".join(_closing(args, document, seconds)))
+    return 0
 
 
 def main(argv=None) -> int:
@@ -181,6 +215,8 @@ def main(argv=None) -> int:
     from g2r_jax.runtime import compile_cache
 
     args = _arguments(argv)
+    if args.summary:
+        return _summary(args)
     if not NUS.is_dir() or not CARLA.is_dir():
         print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
         return 2
@@ -199,11 +235,12 @@ def main(argv=None) -> int:
         if args.figures:
             args.figures.mkdir(parents=True, exist_ok=True)
             result.figure(args.figures / f"isp_{name}.png")
-        _write(args, results, lines + _closing(args, results, time.perf_counter() - start), time.perf_counter() - start)
+        elapsed = time.perf_counter() - start
+        _write(args, _document(results), lines + _closing(args, _document(results), elapsed), elapsed)
     total = time.perf_counter() - start
-    closing = _closing(args, results, total)
+    closing = _closing(args, _document(results), total)
     print("\n".join(closing))
-    _write(args, results, lines + closing, total)
+    _write(args, _document(results), lines + closing, total)
     return 0
 
 
