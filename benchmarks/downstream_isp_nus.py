@@ -1,6 +1,6 @@
 """The paper's neural-ISP task (Graphics2RAW supplement S1.3, Tables S2, S5, S6) on the nine NUS
 cameras: a UNet learns packed RAW -> display sRGB (the target: LibRaw at each DNG's as-shot white
-balance, `g2r_jax.downstream.reference_render`) on synthetic pairs made from the CARLA CG frames
+balance, `g2r_jax.io.reference_render`) on synthetic pairs made from the CARLA CG frames
 (UPI, g2r_jax fitted / without content model / shipped / one DNG) or on the real training folds,
 and is tested on the real held-out fold (`g2r_jax.downstream.isp.run_isp_task`).
 

@@ -119,12 +119,14 @@ def sample_conditions(key, profile, *, neutral=None, iso=None, exposure_gain=Non
 def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: bool = True,
                   effects: bool = True, highlight_safe: bool | None = None, recipe: str = "dng",
                   quantize: bool = True, lens_gain=None, colour: str = "matrix", valid_shape=None,
-                  return_clean: bool = False, content: bool | None = None):
+                  return_clean: bool = False, content: bool | None = None, return_scene: bool = False):
     """Steps 1 and 5-7 of `unprocess`: the pixels, for `conditions` from `sample_conditions`.
 
     Returns the mosaic, or with `return_clean` the pair (mosaic, clean): clean is the same
     mosaic without the random parts of the sensor (noise, row/column banding), every
-    deterministic effect kept, from the same colour computation (one pass under jit).
+    deterministic effect kept, from the same colour computation (one pass under jit). With
+    `return_scene` the adapted scene (`adapted_scene`: linear sRGB after the content model, before
+    the exposure gain) follows: (mosaic, scene) or (mosaic, clean, scene).
 
     `valid_shape`: (h, w) (traced int32 allowed) when `image` is an h x w image zero-padded at
     the bottom and right; the top-left h x w of the result is then bit for bit that of the
@@ -136,8 +138,9 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
     # 1. Decode display values to linear sRGB.
     curve = "gamma2.2" if recipe == "published" else transfer
     linear = decode(image, curve)
-    linear, conditions = content_stage(linear, conditions, profile, content, colour,
-                                       grid=lambda: decode(_content.mean_grid(image), curve))
+    grid = lambda: decode(_content.mean_grid(image), curve)
+    scene = adapted_scene(linear, profile, content, grid) if return_scene else None
+    linear, conditions = content_stage(linear, conditions, profile, content, colour, grid=grid)
 
     # 5. Un-white-balance and mosaic in one step, scaled so that white reaches 1 in the
     #    strongest channel, then a global exposure gain.
@@ -161,15 +164,36 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
     keys = jnp.stack([conditions["noise_key"], conditions["readout_key"]])
     mosaic = _sensor.readout(keys, signal, profile.black_level, profile.white_level, noise=noise_at,
                              effects=profile.effects if effects else None, quantize=quantize, valid_shape=valid_shape)
-    if not return_clean:
-        return mosaic
-    clean = jnp.minimum(signal, profile.effects.clip_level) if effects else signal
-    return mosaic, _sensor.to_digital_numbers(clean, profile.black_level, profile.white_level,
-                                              profile.effects if effects else _sensor.no_effects(), quantize=quantize)
+    outputs = (mosaic,)
+    if return_clean:
+        clean = jnp.minimum(signal, profile.effects.clip_level) if effects else signal
+        outputs += (_sensor.to_digital_numbers(clean, profile.black_level, profile.white_level,
+                                               profile.effects if effects else _sensor.no_effects(), quantize=quantize),)
+    if return_scene:
+        outputs += (scene,)
+    return outputs[0] if len(outputs) == 1 else outputs
 
 
 # colour stages whose mosaic is a matrix on linear sRGB (`conditions["srgb_to_wb_camera"]`)
 MATRIX_ON_LINEAR = ("matrix", "spectral")
+
+
+def _active_content(profile, content: bool | None):
+    """The profile's content model when the conversion applies it (`content` True, or None and
+    the model's `apply_by_default`), else None; True without a model is an error."""
+    model = getattr(profile, "content", None)
+    if content and model is None:
+        raise ValueError(f"content=True, but profile {profile.info.name!r} has no content model "
+                         "(g2r-fit-profile fits one)")
+    if model is None or content is False or (content is None and not model.apply_by_default):
+        return None
+    return model
+
+
+def _content_matrix(model, linear, grid):
+    """The model as a 3x3 on linear sRGB (None for a non-linear family); the 'cast' family's
+    gains come from `grid()` when given (the image's `content.mean_grid`, decoded on its own)."""
+    return _content.as_matrix(model, grid() if grid is not None and model.family == "cast" else linear)
 
 
 def content_stage(linear, conditions, profile, content: bool | None, colour: str = "matrix", grid=None):
@@ -181,16 +205,25 @@ def content_stage(linear, conditions, profile, content: bool | None, colour: str
     that is a matrix on linear sRGB is folded into that matrix (M A: the same result to float
     rounding, no pass over the pixels; the 'cast' family's gains come from `grid()`, when given:
     the image's `content.mean_grid` decoded on its own); otherwise the model transforms the pixels."""
-    model = getattr(profile, "content", None)
-    if content and model is None:
-        raise ValueError(f"content=True, but profile {profile.info.name!r} has no content model "
-                         "(g2r-fit-profile fits one)")
-    if model is None or content is False or (content is None and not model.apply_by_default):
+    model = _active_content(profile, content)
+    if model is None:
         return linear, conditions
-    matrix = _content.as_matrix(model, grid() if grid is not None and model.family == "cast" else linear)
+    matrix = _content_matrix(model, linear, grid)
     if matrix is None or colour not in MATRIX_ON_LINEAR:
         return _content.apply(model, linear), conditions
     return linear, {**conditions, "srgb_to_wb_camera": conditions["srgb_to_wb_camera"] @ matrix}
+
+
+def adapted_scene(linear, profile, content: bool | None = None, grid=None):
+    """The scene as the camera model sees it: linear sRGB (H, W, 3) after the content model
+    that `content_stage` applies (the same model, the same matrix), or `linear` itself when none
+    applies. An ISP's consistent target: the mosaic is this scene times the colour stage's
+    matrix and the exposure gain (`render_mosaic(..., return_scene=True)`)."""
+    model = _active_content(profile, content)
+    if model is None:
+        return linear
+    matrix = _content_matrix(model, linear, grid)
+    return _content.apply(model, linear) if matrix is None else jnp.einsum("ij,...j->...i", matrix, linear)
 
 
 def without_content(profile):
@@ -218,7 +251,8 @@ def _check_image(image, ndim: int = 3):
 def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=None,
               exposure_gain=None, noise: bool = True, effects: bool = True,
               highlight_safe: bool | None = None, recipe: str = "dng", quantize: bool = True, lens_gain=None,
-              colour: str = "matrix", return_clean: bool = False, content: bool | None = None):
+              colour: str = "matrix", return_clean: bool = False, content: bool | None = None,
+              return_scene: bool = False):
     """Turn one CG image into a RAW mosaic of the profiled camera.
 
     **Arguments:**
@@ -248,8 +282,12 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
       first: True, False, or None (default) as the profile's model says (`apply_by_default`).
     - `return_clean`: also return the clean mosaic (no noise, no banding; every deterministic
       effect kept), computed in the same pass: a denoiser's (input, target) pair.
+    - `return_scene`: also return the scene as the camera saw it (`adapted_scene`): linear sRGB
+      (H, W, 3) after the content model, before the exposure gain. With the content model on,
+      this, not the input image, is what the mosaic holds: an ISP's consistent target.
 
-    **Returns:** `(mosaic, metadata)`, or `(mosaic, clean, metadata)` with `return_clean`:
+    **Returns:** `(mosaic, metadata)`, `(mosaic, clean, metadata)` with `return_clean`,
+    `(mosaic, scene, metadata)` with `return_scene`, `(mosaic, clean, scene, metadata)` with both:
     mosaic (H, W) in DN between the black and white levels;
     metadata a dict of arrays: neutral (3,), xy (2,), cct, iso, exposure_gain, noise_shot (4,),
     noise_read (4,) (normalised units per tile position), converged (white-point solve).
@@ -264,8 +302,9 @@ def unprocess(key, image, profile, *, transfer: str = "srgb", neutral=None, iso=
     # Steps 1, 5-7: decode, un-white-balance and mosaic, sensor, levels.
     mosaic = render_mosaic(image, conditions, profile, transfer=transfer, noise=noise, effects=effects,
                            highlight_safe=highlight_safe, recipe=recipe, quantize=quantize, lens_gain=lens_gain,
-                           colour=colour, return_clean=return_clean, content=content)
-    return (*mosaic, _metadata(conditions, colour)) if return_clean else (mosaic, _metadata(conditions, colour))
+                           colour=colour, return_clean=return_clean, content=content, return_scene=return_scene)
+    outputs = mosaic if isinstance(mosaic, tuple) else (mosaic,)
+    return (*outputs, _metadata(conditions, colour))
 
 
 def unprocess_batch(keys, images, profile, *, neutral=None, iso=None, exposure_gain=None,
@@ -283,16 +322,17 @@ def unprocess_batch(keys, images, profile, *, neutral=None, iso=None, exposure_g
     (h, w) of images zero-padded at the bottom/right to a common shape (each image's top-left
     h x w is then bit for bit its unpadded conversion: how `g2r-convert` batches mixed sizes);
     other options as `unprocess` (with `return_clean=True` the result is
-    `(mosaics, clean_mosaics, metadata)`).
+    `(mosaics, clean_mosaics, metadata)`, with `return_scene=True` the adapted scenes follow the
+    mosaics as in `unprocess`).
     """
     _check_image(images, ndim=4)
     conditions = batch_conditions(keys, profile, neutral=neutral, iso=iso, exposure_gain=exposure_gain,
                                   recipe=recipe, colour=colour)
     render = lambda image, c, shape: render_mosaic(image, c, profile, recipe=recipe, colour=colour,
                                                    valid_shape=shape, **render_options)
-    mosaics = jax.vmap(render)(images, conditions, valid_shapes)
-    metadata = _metadata(conditions, colour)
-    return (*mosaics, metadata) if render_options.get("return_clean") else (mosaics, metadata)
+    outputs = jax.vmap(render)(images, conditions, valid_shapes)
+    outputs = outputs if isinstance(outputs, tuple) else (outputs,)
+    return (*outputs, _metadata(conditions, colour))
 
 
 CONDITIONS_CHUNK = 32

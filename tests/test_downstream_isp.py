@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import g2r_jax
-from g2r_jax.downstream import isp, isp_net, isp_pairs, reference_render
+from g2r_jax.downstream import isp, isp_net, isp_pairs
+from g2r_jax.io import reference_render
 from g2r_jax.io.dng_info import DngError
 
 BAYER = {"RGGB": (0, 1, 1, 2), "GRBG": (1, 0, 2, 1), "GBRG": (1, 2, 0, 1), "BGGR": (2, 1, 1, 0)}

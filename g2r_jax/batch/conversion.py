@@ -52,6 +52,8 @@ class ConvertOptions:
     crop_odd: bool = False
     lens_shading: bool = False    # divide by the camera's lens-shading gain map and write its opcode
     compression: str = "none"     # DNG pixels: 'none' or 'ljpeg' (lossless JPEG tiles, `g2r_jax.io.dng_write`)
+    pairs: bool = False           # also write each task's pair beside the DNG (`g2r_jax.batch.pairs`)
+    developed: bool = False       # with `pairs`: also the reference developer's target of the clean DNG
     progress: bool = True
     max_pixels: int | None = DEFAULT_MAX_PIXELS        # per image; larger images are refused by name
     max_batch_pixels: int | None = 2 * DEFAULT_MAX_PIXELS   # per compiled call; fewer images per batch above it
@@ -187,7 +189,7 @@ def _batched_unprocess(options: ConvertOptions, transfer: str, with_neutral: boo
     `effects`: whether the sensor effects are rendered (False for a profile whose effects change
     nothing, `sensor.effects.changes_nothing`: the same bytes, a fifth of the CPU time)."""
     signature = (options.noise, effects, options.recipe, transfer, with_neutral, options.iso is not None,
-                 options.lens_shading, options.colour)
+                 options.lens_shading, options.colour) + (("pairs",) if options.pairs else ())
 
     if signature not in _COMPILED:
         def batch(keys, images, profile, neutrals, iso, lens_gain, valid_shapes):
@@ -195,7 +197,8 @@ def _batched_unprocess(options: ConvertOptions, transfer: str, with_neutral: boo
                                    effects=effects, recipe=options.recipe, colour=options.colour,
                                    neutral=neutrals if with_neutral else None,
                                    iso=iso if options.iso is not None else None,
-                                   lens_gain=lens_gain if options.lens_shading else None)
+                                   lens_gain=lens_gain if options.lens_shading else None,
+                                   return_clean=options.pairs, return_scene=options.pairs)
 
         # traced once per option set and shape, then kept on disk for the next process (program_store)
         _COMPILED[signature] = stored_program(repr(signature), jax.jit(batch))
@@ -223,14 +226,43 @@ def collision_error(path, name: str) -> DngError:
                           "rename one")
 
 
-def _manifest_record(path, output, metadata, seed, content: str | None = None):
+def _pair_files(path, name: str, options: ConvertOptions) -> dict:
+    from g2r_jax.batch.pairs import pair_outputs
+
+    linear = _transfer_for(Path(path), options.transfer) == "linear"
+    return pair_outputs(name, linear=linear, developed=options.developed)
+
+
+def refused_outputs(inputs, names, out_dir, options: ConvertOptions) -> dict:
+    """{input index: DngError} for the inputs refused before anything is written because one of
+    their outputs would collide: two inputs with one output name (`colliding_names`), and with
+    `options.pairs` any pair file claimed twice or naming an input (`batch.pairs.output_conflicts`).
+    A property of the whole run (the Ray engine decides it before splitting the files)."""
+    duplicates = colliding_names(names)
+    refused = {i: collision_error(path, names[i]) for i, path in enumerate(inputs) if names[i] in duplicates}
+    if options.pairs:
+        from g2r_jax.batch.pairs import output_conflicts
+
+        conflicts = output_conflicts(inputs, names, out_dir, lambda i: {
+            "dng": names[i] + ".dng", **_pair_files(inputs[i], names[i], options)})
+        for index, problem in conflicts.items():
+            refused.setdefault(index, DngError(inputs[index], problem))
+    return refused
+
+
+def _manifest_record(path, output, metadata, seed, content: str | None = None, pair: dict | None = None):
+    from g2r_jax.batch.pairs import illuminant_label, pair_record
+
     record = {"input": str(path), "output": str(output),
               "neutral": [round(float(v), 8) for v in np.asarray(metadata["neutral"])],
+              "illuminant_rgb": illuminant_label(metadata["neutral"]),
               "xy": [round(float(v), 8) for v in np.asarray(metadata["xy"])],
               "cct": round(float(metadata["cct"]), 3), "iso": round(float(metadata["iso"]), 3),
               "exposure_gain": round(float(metadata["exposure_gain"]), 6), "seed": seed}
     if content is not None:   # the content model the scene went through (`g2r_jax.content.describe`)
         record["content_model"] = content
+    if pair is not None:      # the task pairs' files (`g2r_jax.batch.pairs`), relative to the folder
+        record["pair"] = pair_record(pair)
     return record
 
 
@@ -320,7 +352,7 @@ class _BatchRun:
         self.folder, self.inputs, self.profile, self.out_dir = folder, inputs, profile, out_dir
         self.neutrals, self.options, self.on_error = neutrals, options, on_error
         self.names = output_names(inputs) if names is None else [str(n) for n in names]
-        self.duplicates = colliding_names(self.names)
+        self.refused = refused_outputs(inputs, self.names, out_dir, options)
         self.records, self.errors, self.lens = {}, [], {}
         self.progress = None
         if options.progress:
@@ -349,8 +381,41 @@ class _BatchRun:
             self.lens[(height, width)] = lens_shading_for(self.profile, height, width)
         return self.lens[(height, width)]
 
-    def write(self, index, path, mosaic, metadata):
-        """Write one DNG (atomically; its manifest record appended once it is in place)."""
+    def pair_of(self, index) -> dict:
+        """{role: relative path} of the pair files input `index` gets (`batch.pairs.pair_outputs`)."""
+        return _pair_files(self.inputs[index], self.names[index], self.options)
+
+    def write_pair(self, index, mosaic, clean, scene, metadata, opcodes) -> dict:
+        """Write the pair files of input `index` (each atomically, before its DNG); returns the
+        manifest's {role: path}. A clean mosaic equal to the noisy one is not written twice: the
+        pair's 'clean' names the DNG itself."""
+        from g2r_jax.batch import pairs
+        from g2r_jax.io.dng_write import write_dng_bytes
+
+        name, pair = self.names[index], self.pair_of(index)
+        pairs.checked_size(name, scene, mosaic.shape)
+        clean_bytes = None
+        if np.array_equal(clean, mosaic):
+            pair["clean"] = f"{name}.dng"
+        else:
+            info = pairs.clean_dng_info(self.profile, metadata, *clean.shape, opcode_list2=opcodes)
+            clean_bytes = write_dng_bytes(np.asarray(clean), info, where=self.out_dir / pair["clean"],
+                                          compression=self.options.compression)
+            atomic_write_bytes(self.out_dir / pair["clean"], clean_bytes)
+        atomic_write_bytes(self.out_dir / pair["scene"], pairs.scene_png_bytes(scene))
+        if "scene_linear" in pair:
+            atomic_write_bytes(self.out_dir / pair["scene_linear"], pairs.scene_exr_bytes(scene))
+        if "developed" in pair:
+            if clean_bytes is None:
+                info = pairs.clean_dng_info(self.profile, metadata, *clean.shape, opcode_list2=opcodes)
+                clean_bytes = write_dng_bytes(np.asarray(clean), info, where=self.out_dir / pair["clean"])
+            atomic_write_bytes(self.out_dir / pair["developed"],
+                               pairs.developed_png_bytes(clean_bytes, str(self.out_dir / pair["clean"])))
+        return pair
+
+    def write(self, index, path, mosaic, metadata, clean=None, scene=None):
+        """Write one DNG (atomically; its manifest record appended once it is in place), and its
+        pair files first when `clean` and `scene` are given."""
         from g2r_jax.io.dng_write import write_dng_bytes
 
         options, name = self.options, self.names[index]
@@ -358,9 +423,10 @@ class _BatchRun:
         try:
             output.parent.mkdir(parents=True, exist_ok=True)
             opcodes = self.lens_for(*mosaic.shape)[1] if options.lens_shading else None
+            pair = None if clean is None else self.write_pair(index, mosaic, clean, scene, metadata, opcodes)
             info = dng_info_for(self.profile, metadata, mosaic.shape[0], mosaic.shape[1], noise=options.noise,
                                 opcode_list2=opcodes)
-            record = _manifest_record(path, f"{name}.dng", metadata, options.seed, applied_content(self.profile))
+            record = _manifest_record(path, f"{name}.dng", metadata, options.seed, applied_content(self.profile), pair)
             folder = self.folder
             atomic_write_bytes(output, write_dng_bytes(np.asarray(mosaic), info, where=output,
                                                        compression=options.compression),
@@ -374,13 +440,16 @@ class _BatchRun:
     def collect(self, future):
         _collect(future, self.inputs, self.records, self.report, self.progress)
 
-    def hand_over(self, batch, mosaics, metadata):
-        mosaics = np.asarray(mosaics)   # waits for this batch only: the next one is already queued
-        metadata = {k: np.asarray(v) for k, v in metadata.items()}
+    def hand_over(self, batch, *outputs):
+        """Hand a finished batch to the writers: `outputs` the program's (mosaics, [clean mosaics,
+        scenes,] metadata)."""
+        arrays = [np.asarray(a) for a in outputs[:-1]]   # waits for this batch only: the next one is queued
+        metadata = {k: np.asarray(v) for k, v in outputs[-1].items()}
         for j, (index, image) in enumerate(batch):
-            mosaic = mosaics[j, :image.shape[0], :image.shape[1]]
+            height, width = image.shape[:2]
+            mosaic, *pair = (a[j, :height, :width] for a in arrays)
             self.writing.append(self.pool.submit(self.write, index, self.inputs[index], mosaic,
-                                                 {k: v[j] for k, v in metadata.items()}))
+                                                 {k: v[j] for k, v in metadata.items()}, *pair))
         while len(self.writing) > self.window:    # bounded memory: writers keep up or the compute waits
             self.collect(self.writing.pop(0))
 
@@ -421,7 +490,7 @@ class _BatchRun:
         shape, _, transfer = group
         count, size = len(batch), self.capacity(shape)
         padded = batch + [batch[-1]] * (size - count) if count < size else batch
-        self.in_flight.append((batch,) + self._run_batch(padded, shape, transfer))
+        self.in_flight.append((batch,) + tuple(self._run_batch(padded, shape, transfer)))
         if len(self.in_flight) > 1:
             self.hand_over(*self.in_flight.pop(0))
 
@@ -446,8 +515,8 @@ class _BatchRun:
         """The decoded image of input `index`, or None after reporting why it cannot be used."""
         path = self.inputs[index]
         try:
-            if self.names[index] in self.duplicates:
-                raise collision_error(path, self.names[index])
+            if index in self.refused:
+                raise self.refused[index]
             return self.loading.pop(index).result()
         except Exception as error:  # noqa: BLE001 - every per-file failure is reported, the batch goes on
             self.loading.pop(index, None)

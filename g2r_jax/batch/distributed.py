@@ -127,8 +127,8 @@ def convert_files_ray(inputs, profile, out_dir, *, neutrals=None, options=None, 
     **Returns:** `ConvertResult` with the records in input order.
     """
     ray = _require_ray()
-    from g2r_jax.batch.conversion import (ConvertOptions, ConvertResult, colliding_names, collision_error,
-                                          output_names, write_manifest_file)
+    from g2r_jax.batch.conversion import (ConvertOptions, ConvertResult, output_names, refused_outputs,
+                                          write_manifest_file)
 
     options = options or ConvertOptions()
     chunk_options = dataclasses.replace(options, progress=False)
@@ -146,11 +146,11 @@ def convert_files_ray(inputs, profile, out_dir, *, neutrals=None, options=None, 
     # Output names and their collisions are a property of the whole run, not of a chunk: decided
     # here, as locally.
     names = output_names(given_inputs)
-    duplicates = colliding_names(names)
+    refused = refused_outputs(given_inputs, names, out_dir, options)
     keep = []
-    for index, path in enumerate(given_inputs):
-        if names[index] in duplicates:
-            report(str(collision_error(path, names[index])))
+    for index in range(len(given_inputs)):
+        if index in refused:
+            report(str(refused[index]))
         else:
             keep.append(index)
 

@@ -17,6 +17,7 @@ USAGE = """g2r-convert INPUT [INPUT ...] --profile NAME|FILE -o OUT_DIR [options
 EXAMPLES = """  g2r-convert renders/ --profile gopro_hero6 -o dngs/
   g2r-convert sceneA/ sceneB/ --profile my_camera.json -o dngs/ --iso 800   # dngs/sceneA/..., dngs/sceneB/...
   g2r-convert --example -o example_dng/
+  g2r-convert renders/ --profile my_camera.json -o dngs/ --pairs   # + x.clean.dng, x.scene.png per x.dng
 """
 # LibRaw (rawpy, many viewers) applies one colour matrix whatever the light; Adobe's SDK and
 # darktable interpolate the matrices by the white's temperature as the DNG specification says.
@@ -60,6 +61,14 @@ def build_parser() -> argparse.ArgumentParser:
                               "gets the 'cast' model of the prior of real scenes")
     content.add_argument("--no-content-model", action="store_true",
                          help="do not apply the profile's content model")
+    parser.add_argument("--pairs", action="store_true",
+                        help="also write what each task trains on beside each x.dng: x.clean.dng (no noise: the "
+                             "denoising target), x.scene.png (16-bit sRGB: the frame as the camera saw it, after "
+                             "the content model; the ISP's target; x.scene.exr too for linear inputs); the "
+                             "manifest gives each file's light in camera RGB (illuminant_rgb) and its pair's names")
+    parser.add_argument("--developed", action="store_true",
+                        help="with --pairs (implied): also x.developed.png, the clean DNG developed by the "
+                             "check's reference developer (LibRaw at the as-shot white balance)")
     parser.add_argument("--illuminants", type=Path, metavar="CSV",
                         help="CSV with columns r_over_g,g,b_over_g; row i for the i-th input in sorted order")
     parser.add_argument("--transfer", choices=["auto", "srgb", "gamma2.2", "linear"], default="auto",
@@ -166,6 +175,15 @@ def _content_choice(profile, args, say):
     return profile
 
 
+def _pair_notes(records) -> list:
+    """What the user should know about the pairs written: DNGs that are their own clean target."""
+    own = sum(1 for r in records if "pair" in r and r["pair"].get("clean") == r["output"])
+    if not own:
+        return []
+    return [f"{own} DNG(s) have no noise (--no-noise): each is its own clean target, written once "
+            "(the manifest's pair.clean names the DNG)"]
+
+
 def body(args) -> int:
     from g2r_jax.profile import schema as profile_module
     from g2r_jax.batch.conversion import IMAGE_EXTENSIONS, ConvertOptions, convert_files
@@ -209,7 +227,8 @@ def body(args) -> int:
     options = ConvertOptions(seed=args.seed, iso=args.iso, noise=not args.no_noise, effects=not args.no_effects,
                              transfer=args.transfer, recipe=args.recipe, colour=args.colour, batch_size=args.batch_size,
                              workers=args.workers, crop_odd=args.crop_odd, lens_shading=args.lens_shading,
-                             compression=args.compression,
+                             compression=args.compression, pairs=args.pairs or args.developed,
+                             developed=args.developed,
                              max_pixels=int(args.max_megapixels * 1e6) if args.max_megapixels > 0 else None,
                              max_batch_pixels=int(args.max_batch_megapixels * 1e6) if args.max_batch_megapixels > 0 else None,
                              progress=not args.quiet and sys.stderr.isatty())
@@ -222,7 +241,7 @@ def body(args) -> int:
     else:
         result = convert_files(files, profile, args.output, neutrals=neutrals, options=options, on_error=report)
     failed = len(errors) + len(result.errors)
-    for note in result.notes:
+    for note in result.notes + _pair_notes(result.records):
         say(f"note: {one_line(note)}")
     manifest = args.output / "manifest.jsonl"
     print(f"g2r-convert: {len(result.records)} DNG(s) written to {args.output} with profile "

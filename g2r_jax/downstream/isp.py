@@ -3,7 +3,7 @@ and supplement S1.3, Tables S2, S3, S5, S6): a UNet learns RAW -> display sRGB o
 pairs and is tested on the camera's real pairs, beside the same UNet trained on UPI's synthetic
 RAW (Brooks et al. CVPR 2019) and on the real pairs themselves (cross-validated).
 
-Protocol: one fixed developer (`downstream.reference_render`, LibRaw at each file's AsShotNeutral)
+Protocol: one fixed developer (`g2r_jax.io.reference_render`, LibRaw at each file's AsShotNeutral)
 makes the sRGB target of every DNG, real or synthetic; the network sees the packed RAW alone, so
 it must learn the white balance too (`downstream.isp_pairs` makes the pairs, `downstream.isp_net`
 has the UNet and the measures). The real files are split into `folds` folds

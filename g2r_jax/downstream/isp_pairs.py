@@ -10,7 +10,7 @@ tags and levels (no lens-shading opcodes, no crop). Then, for every DNG alike:
 - input: the mosaic black-subtracted, scaled by the range (WhiteLevel - BlackLevel) and packed by
   its CFA pattern into 4 planes in the order R, G1, G2, B whatever the pattern's phase (G1 the
   green on the red sites' rows, G2 the one on the blue sites' rows: `channel_positions`);
-- target: the small DNG developed by the reference renderer (`downstream.reference_render.develop`,
+- target: the small DNG developed by the reference renderer (`g2r_jax.io.reference_render.develop`,
   LibRaw at its as-shot white balance), at the mosaic's full resolution.
 
 Why tiles, and why the binned file is developed rather than the full one: a target binned from a
@@ -159,7 +159,7 @@ def pair_of(source, size: int = WORKING_SIZE) -> tuple:
     file's shorter side). **Returns:** two float32 arrays. **Raises:** `DngError`
     naming the file when it cannot be read or developed, or is smaller than the task.
     """
-    from g2r_jax.downstream.reference_render import develop
+    from g2r_jax.io.reference_render import develop
 
     small = working_source(source, size)
     rendered = develop(small.data, name=small.name)

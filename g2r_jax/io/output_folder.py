@@ -9,7 +9,8 @@
   file is renamed into place, under the commit lock of `g2r_jax.io.atomic`, so an interruption
   leaves both or neither. On opening, the manifest is rebuilt from what is there: records whose
   file is gone, unreadable lines (a killed append) and all but the last record of an output are
-  dropped. DNGs that have no record are reported (`OutputFolder.unlisted`).
+  dropped. DNGs that have no record (neither as an output nor as a file of its `pair`:
+  `g2r-convert --pairs`) are reported (`OutputFolder.unlisted`).
 """
 
 from __future__ import annotations
@@ -70,7 +71,8 @@ class OutputFolder:
         self._lock(command)
         self.removed_temporaries = remove_temporaries(self.path.rglob(".*"))
         self.records = self._rebuild()
-        listed = {self.key(r) for r in self.records}
+        listed = {self.key(r) for r in self.records} | {Path(str(path)).as_posix() for r in self.records
+                                                        for path in (r.get("pair") or {}).values()}
         self.unlisted = sorted(name for name in self._relative("*.dng") if name not in listed)
         _OPEN.append(self)
 

@@ -1,5 +1,6 @@
-"""The neural-ISP task's reference renderer: one fixed RAW developer that makes the display-sRGB
-target of every DNG, real or synthetic, the same way.
+"""The reference renderer: one fixed RAW developer that makes the display-sRGB image of every DNG,
+real or synthetic, the same way: the neural-ISP task's targets (`g2r_jax.downstream.isp_pairs`)
+and the "camera look" target of `g2r-convert --pairs --developed` (`g2r_jax.batch.pairs`).
 
 The paper (Graphics2RAW, Seo et al. ICCV 2023, supplement S1.3) rendered both its real and its
 synthetic DNGs with Adobe Camera Raw at the same settings and each file's as-shot white balance;
