@@ -35,7 +35,7 @@ import numpy as np
 
 from g2r_jax.io.dng_info import DngError
 
-__all__ = ["PAIR_SUFFIXES", "pair_outputs", "illuminant_label", "clean_dng_info", "scene_png_bytes",
+__all__ = ["PAIR_SUFFIXES", "pair_outputs", "illuminant_label", "clean_pairs", "clean_dng_info", "scene_png_bytes",
            "scene_exr_bytes", "developed_png_bytes", "output_conflicts"]
 
 PAIR_SUFFIXES = {"clean": ".clean.dng", "scene": ".scene.png", "scene_linear": ".scene.exr",
@@ -59,6 +59,17 @@ def illuminant_label(neutral) -> list:
     raw RGB) normalised to sum 1, rounded to 8 decimals."""
     neutral = np.asarray(neutral, np.float64)
     return [round(float(v), 8) for v in neutral / neutral.sum()]
+
+
+def clean_pairs(keys, images, profile, *, neutral=None, transfer: str = "srgb", **options):
+    """(mosaics, clean mosaics, scenes, metadata) of a batch: `unprocess_batch(...,
+    return_clean=True, return_scene=True)`, the program `g2r-convert --pairs` runs; the ISP task
+    calls it with `noise=False` and trains on the clean mosaics. Jit it (or call it inside a jitted
+    step); other options as `unprocess_batch`."""
+    from g2r_jax.pipeline import unprocess_batch
+
+    return unprocess_batch(keys, images, profile, neutral=neutral, transfer=transfer, return_clean=True,
+                           return_scene=True, **options)
 
 
 def clean_dng_info(profile, metadata: dict, height: int, width: int, *, opcode_list2: bytes | None = None):

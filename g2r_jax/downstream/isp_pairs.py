@@ -228,11 +228,11 @@ def thumbnail_sources(images: np.ndarray, illuminants: np.ndarray, profile, name
 
 @eqx.filter_jit
 def _g2r_mosaics(keys, images, neutrals, profile):
-    from g2r_jax.pipeline import unprocess_batch
+    from g2r_jax.batch.pairs import clean_pairs
 
-    mosaics, metadata = unprocess_batch(keys, images, profile, neutral=neutrals, transfer="linear", noise=False,
+    _, clean, _, metadata = clean_pairs(keys, images, profile, neutral=neutrals, transfer="linear", noise=False,
                                         quantize=True)
-    return mosaics, metadata
+    return clean, metadata
 
 
 def _chunks(n: int):
@@ -263,17 +263,18 @@ def _views(views, size: int, name: str) -> np.ndarray:
 def g2r_pairs(views_linear: np.ndarray, profile, seed: int, *, neutrals=None, size: int = WORKING_SIZE,
               name: str = "g2r_jax") -> tuple:
     """Training pairs of g2r_jax RAW: linear sRGB views (n, size/2, size/2, 3), each pixel one CFA
-    tile (repeated 2x2), made noise-free RAW mosaics of `profile` (`g2r_jax.unprocess_batch`: its
-    lights, exposure, sensor effects, and its content model when it applies one by default),
-    written as DNGs with its tags and the sampled AsShotNeutral (`profile.dng_tags.dng_info_for`),
-    developed by the reference renderer.
+    tile (repeated 2x2), made the way `g2r-convert --pairs --developed` makes its pairs
+    (`g2r_jax.batch.pairs`): the clean mosaics of `profile` (`clean_pairs`: its lights, exposure,
+    deterministic sensor effects, and its content model when it applies one by default), written
+    as clean DNGs (`clean_dng_info`: its tags, the sampled AsShotNeutral), developed by the
+    reference renderer.
 
     **Arguments:** `neutrals` (n, 3) fixes the lights instead of drawing them from the profile's
     illuminant model; `seed` draws lights and exposures; `size` the DNGs' side.
     **Returns:** (packed (n, size/2, size/2, 4), targets (n, size, size, 3)).
     """
+    from g2r_jax.batch.pairs import clean_dng_info
     from g2r_jax.pipeline import without_illuminants
-    from g2r_jax.profile.dng_tags import dng_info_for
 
     images = _views(views_linear, size, name)
     images = np.repeat(np.repeat(images, 2, axis=1), 2, axis=2)
@@ -295,7 +296,7 @@ def g2r_pairs(views_linear: np.ndarray, profile, seed: int, *, neutrals=None, si
         mosaics, metadata = np.asarray(mosaics), {k: np.asarray(v) for k, v in metadata.items()}
         for i in range(stop - start):
             one = {k: v[i] for k, v in metadata.items()}
-            info = dng_info_for(fixed, one, *mosaics[i].shape, noise=False)
+            info = clean_dng_info(fixed, one, *mosaics[i].shape)
             sources.append(dng_source(mosaics[i], info, f"<{name} {start + i}>"))
     return _sources_to_pairs(sources, size)
 
