@@ -217,3 +217,32 @@ def test_a_second_run_lists_the_clean_dngs(tmp_path, capsys):
     status = convert_main([str(folder), "--profile", "NikonD40", "-o", str(tmp_path / "out"), "--pairs",
                            "--no-progress"])
     assert status == 0 and "not listed in its manifest" not in capsys.readouterr().err
+
+
+def test_the_guides_loader_reads_each_tasks_pair(tmp_path, monkeypatch):
+    """The loader of docs/pages/guide/training_loop.md (its PyTorch part runs where torch is
+    installed) gives the files' values: planes by colour, the light, the scene target."""
+    import re
+    from pathlib import Path
+
+    from g2r_jax.downstream.isp_pairs import pack
+
+    page = (Path(__file__).resolve().parents[1] / "docs/pages/guide/training_loop.md").read_text()
+    block = next(b for b in re.findall(r"```python\n(.*?)\n```", page, re.S) if "def read_folder" in b)
+    folder = _scene_folder(tmp_path, ["a.png", "b.png"])
+    _convert(folder, tmp_path / "pairs", "--profile", "Canon600D")
+    monkeypatch.chdir(tmp_path)
+    namespace = {}
+    exec(compile(block, "training_loop.md", "exec"), namespace)
+    samples = namespace["samples"]
+    assert len(samples) == 2
+    info = read_dng_info(tmp_path / "pairs" / "a.clean.dng")
+    expected = pack(read_dng_pixels(tmp_path / "pairs" / "a.clean.dng", info), info.cfa_pattern, info.black_level,
+                    info.white_level)                              # R, G1, G2, B
+    planes = samples[0]["clean"]                                   # R, G, B, G2
+    np.testing.assert_allclose(planes[..., 0], expected[..., 0], atol=1e-6)
+    np.testing.assert_allclose(planes[..., 2], expected[..., 3], atol=1e-6)
+    np.testing.assert_allclose(np.sort([planes[..., 1].sum(), planes[..., 3].sum()]),
+                               np.sort([expected[..., 1].sum(), expected[..., 2].sum()]), rtol=1e-6)
+    np.testing.assert_allclose(samples[0]["light"], info.as_shot_neutral / info.as_shot_neutral.sum(), atol=1e-6)
+    np.testing.assert_allclose(samples[0]["scene"], read_image(tmp_path / "pairs" / "a.scene.png")[0], atol=1e-6)
