@@ -64,9 +64,10 @@ def run_camera(name: str, args, cg, say):
     real = real_sets.load_nus(NUS / f"{name}.npz")
     profile, shipped = profiles(name)
     dngs = isp_pairs.thumbnail_sources(real.images, real.illuminants, profile, real.files or None)
+    masks = None if args.no_masks else isp_pairs.thumbnail_masks(real.images)
     training = IspTraining(steps=args.steps, batch=args.batch, width=args.width, learning_rate=args.learning_rate)
     common = dict(seeds=tuple(range(args.seeds)), folds=3, n=args.n, dngs=dngs, shipped=shipped, training=training,
-                  progress=say)
+                  progress=say, masks=masks)
     out = {"all": isp.run_isp_task(real, profile, cg, rows=args.rows, **common)}
     for count in args.lights:
         if count not in (0, None):
@@ -165,7 +166,11 @@ def _arguments(argv):
     parser.add_argument("--width", type=int, default=IspTraining.width)
     parser.add_argument("--learning-rate", type=float, default=IspTraining.learning_rate)
     parser.add_argument("--lights", default="", help="the few-DNG curve, e.g. 0,1,10,all")
-    parser.add_argument("--json", type=Path)
+    parser.add_argument("--no-masks", action="store_true",
+                        help="measure and train on every pixel, the thumbnails' masked chart and saturated pixels "
+                             "(written white) included: the protocol before the masks")
+    parser.add_argument("--json", type=Path, help="results, rewritten after each camera; a camera already in it "
+                                                  "(from a stopped run with the same file) is not run again")
     parser.add_argument("--markdown", type=Path)
     parser.add_argument("--figures", type=Path, help="a folder: one PNG of predictions per camera")
     parser.add_argument("--summary", help="comma-separated JSON files of earlier runs: print their tables, run nothing")
@@ -181,13 +186,15 @@ def _document(results) -> dict:
 
 def _write(args, document, lines, total) -> None:
     """The markdown and JSON of the cameras done so far (rewritten after each camera)."""
+    from g2r_jax.io.atomic import atomic_write_bytes
+
     if args.markdown:
         args.markdown.parent.mkdir(parents=True, exist_ok=True)
-        args.markdown.write_text("\n".join(lines) + "\n")
-    if args.json:
+        atomic_write_bytes(args.markdown, ("\n".join(lines) + "\n").encode())
+    if args.json:       # atomic: a run stopped while writing leaves the last complete file to resume from
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({"seconds": total, "arguments": {k: str(v) for k, v in vars(args).items()},
-                                         "cameras": document}, indent=1))
+        atomic_write_bytes(args.json, json.dumps({"seconds": total, "arguments": {k: str(v) for k, v in vars(args).items()},
+                                                  "cameras": document}, indent=1).encode())
 
 
 def _closing(args, document, total) -> list:
@@ -224,8 +231,12 @@ def main(argv=None) -> int:
     cg = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))]
     say = lambda m: print(f"  {m}", file=sys.stderr, flush=True)
     start = time.perf_counter()
-    results, lines = {}, []
+    results, lines, earlier = {}, [], _earlier(args)
     for name in args.cameras.split(","):
+        if name in earlier:
+            say(f"{name}: kept from {args.json}")
+            lines += [f"## {name} (from the earlier run in {args.json.name})", ""]
+            continue
         results[name] = run_camera(name, args, cg, say)
         result = results[name]["all"]
         block = [f"## {name} ({result.images} real images; {result.seconds:.0f} s)", "", result.table(), "",
@@ -236,12 +247,25 @@ def main(argv=None) -> int:
             args.figures.mkdir(parents=True, exist_ok=True)
             result.figure(args.figures / f"isp_{name}.png")
         elapsed = time.perf_counter() - start
-        _write(args, _document(results), lines + _closing(args, _document(results), elapsed), elapsed)
+        document = {**earlier, **_document(results)}
+        _write(args, document, lines + _closing(args, document, elapsed), elapsed)
     total = time.perf_counter() - start
-    closing = _closing(args, _document(results), total)
+    document = {**earlier, **_document(results)}
+    closing = _closing(args, document, total)
     print("\n".join(closing))
-    _write(args, _document(results), lines + closing, total)
+    _write(args, document, lines + closing, total)
     return 0
+
+
+def _earlier(args) -> dict:
+    """The cameras of an earlier run's --json file (a stopped run resumes after them), else {}."""
+    if not args.json or not args.json.is_file():
+        return {}
+    try:
+        return dict(json.loads(args.json.read_text()).get("cameras", {}))
+    except (OSError, ValueError) as error:
+        print(f"  {args.json}: not read ({error}); every camera runs", file=sys.stderr)
+        return {}
 
 
 if __name__ == "__main__":

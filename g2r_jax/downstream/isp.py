@@ -79,6 +79,7 @@ class IspResult:
     skipped: list = dataclasses.field(default_factory=list)
     examples: dict = dataclasses.field(default_factory=dict)
     training: dict = dataclasses.field(default_factory=dict)
+    unmasked: dict = dataclasses.field(default_factory=dict)   # with masks: the same networks over every pixel
 
     def summary(self, row: str, metric: str) -> dict:
         """The mean over images, folds and seeds of `metric` for `row`, each seed's mean, their
@@ -86,8 +87,9 @@ class IspResult:
 
         **Arguments:** `row` in `rows`; `metric` in `METRICS`. **Returns:** a dict."""
         per_seed = [np.asarray(a, np.float64) for a in self.metrics[(row, metric)]]
-        means = [float(np.mean(a)) for a in per_seed]
-        return {"mean": float(np.mean(np.concatenate(per_seed))), "median": float(np.median(np.concatenate(per_seed))),
+        means = [float(np.nanmean(a)) for a in per_seed]    # NaN: a test image whose mask holds nothing
+        return {"mean": float(np.nanmean(np.concatenate(per_seed))),
+                "median": float(np.nanmedian(np.concatenate(per_seed))),
                 "seed_means": means, "seed_min": min(means), "seed_max": max(means),
                 "seed_sd": float(np.std(means, ddof=1)) if len(means) > 1 else 0.0}
 
@@ -98,6 +100,8 @@ class IspResult:
                 "notes": list(self.notes), "skipped": [{"path": p, "reason": r} for p, r in self.skipped],
                 "training": dict(self.training),
                 "summary": {f"{r}/{m}": self.summary(r, m) for r in self.rows for m in METRICS},
+                "summary_unmasked": {f"{r}/{m}": float(np.mean(np.concatenate(self.unmasked[(r, m)])))
+                                     for r in self.rows for m in METRICS if self.unmasked},
                 "sentence": self.sentence()}
 
     def table(self) -> str:
@@ -225,10 +229,11 @@ class _RowSets:
     """Builds and caches each row's training pairs for one camera, fold and seed."""
 
     def __init__(self, real: RealSet, pairs: tuple, profile, shipped, cg_linear, *, n, size, view_size,
-                 illuminant_model, single_light, lights):
+                 illuminant_model, single_light, lights, masks=None):
         self.real, self.pairs, self.profile, self.shipped = real, pairs, profile, shipped
         self.cg, self.n, self.size, self.view_size = cg_linear, n, size, view_size
         self.illuminant_model, self.single_light, self.lights = illuminant_model, single_light, lights
+        self.masks = masks        # (N, size, size) of the real pairs: out of the real rows' loss
         self.cache, self.notes = {}, []
 
     def _cached(self, key, make):
@@ -283,7 +288,7 @@ class _RowSets:
     def build(self, row: str, train: np.ndarray, fold: int, seed: int):
         salt = 1000 * seed + 10 * fold
         if row == "real":
-            return self.pairs[0][train], self.pairs[1][train]
+            return (self.pairs[0][train], self.pairs[1][train]) + (() if self.masks is None else (self.masks[train],))
         if row == "upi":
             return self._cached(("upi", seed), lambda: _pairs.upi_pairs(
                 _sets.linear_to_srgb_views(self.views(seed)), self.profile, seed + 1, size=self.size))
@@ -309,8 +314,11 @@ class _RowSets:
             views = _sets.real_to_linear_srgb(self.real.images[train], self.real.illuminants[train], self.profile,
                                               size=self.real.images.shape[1])
             views = np.stack([_thumbnails.area_average(v, self.view_size) for v in views])
-            views, = _repeat_to(self.n, views)
-            return self._g2r(views, fitted, salt + 8)
+            if self.masks is None:
+                views, = _repeat_to(self.n, views)
+                return self._g2r(views, fitted, salt + 8)
+            views, masks = _repeat_to(self.n, views, self.masks[train])
+            return (*self._g2r(views, fitted, salt + 8), masks)
         raise ValueError(f"unknown row {row!r}; expected one of {', '.join(ROWS)}")
 
 
@@ -320,11 +328,14 @@ def trainings(rows, seeds, folds: int) -> int:
     return len(rows) * len(seeds) * folds
 
 
-def _real_pairs(real: RealSet, dngs, size: int, folds: int):
-    """(the real set and its pairs without the files the renderer cannot develop, skipped)."""
+def _real_pairs(real: RealSet, dngs, size: int, folds: int, masks=None):
+    """(the real set and its pairs (packed, targets[, masks]) without the files the renderer
+    cannot develop, their sources, skipped)."""
     sources = list(real.files) if dngs is None else list(dngs)
     if len(sources) != len(real.images):
         raise ValueError(f"{real.name}: {len(sources)} DNGs for {len(real.images)} real images (give one per image)")
+    if masks is not None and np.shape(masks) != (len(sources), size, size):
+        raise ValueError(f"{real.name}: masks of shape {np.shape(masks)}, expected {(len(sources), size, size)}")
     packed, targets, kept, skipped = _pairs.pairs_of(sources, size)
     if len(kept) < len(sources):
         groups = None if real.groups is None else np.asarray(real.groups)[kept]
@@ -335,7 +346,8 @@ def _real_pairs(real: RealSet, dngs, size: int, folds: int):
         raise ValueError(f"{real.name or 'the real set'}: {distinct} usable real DNG(s) (distinct files; "
                          f"{len(skipped)} left out) are too few for the neural-ISP task's {folds} folds: it needs at "
                          f"least {2 * folds}")
-    return real, (packed, targets), [s for i, s in enumerate(sources) if i in set(kept)], skipped
+    pairs = (packed, targets) if masks is None else (packed, targets, np.asarray(masks, bool)[kept])
+    return real, pairs, [s for i, s in enumerate(sources) if i in set(kept)], skipped
 
 
 def _examples(fold_sets, count: int = EXAMPLES) -> np.ndarray:
@@ -347,7 +359,7 @@ def _examples(fold_sets, count: int = EXAMPLES) -> np.ndarray:
 def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEFAULT_ROWS, seeds=(0, 1),
                  folds: int = 3, n: int = 200, size: int = _pairs.WORKING_SIZE, dngs=None, shipped=None,
                  lights: Optional[int] = None, illuminant_model: str = "auto", single_light: str = "auto",
-                 training: IspTraining = IspTraining(),
+                 training: IspTraining = IspTraining(), masks=None,
                  progress: Optional[Callable[[str], None]] = None) -> IspResult:
     """Train the ISP UNet on each row's pairs, test it on the real pairs (module docstring).
 
@@ -363,7 +375,10 @@ def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEF
     and 'real_profile_light' to this many random training files only (0: the profile's own:
     the number-of-DNGs ablation, supplement Table S6); `illuminant_model`, `single_light`: the
     kinds fitted (`g2r-fit-profile --illuminant-model`); `training`: the UNet and its training
-    (`isp_net.IspTraining`); `progress`: a callable taking a line of text, or a
+    (`isp_net.IspTraining`); `masks`: (N, size, size) bool per real DNG, True where its target
+    holds what the real data holds (`isp_pairs.thumbnail_masks` of the NUS thumbnails: their masked
+    chart and saturated pixels are out of the real rows' loss and out of every row's measures;
+    None for real DNGs, whose clipped pixels are content); `progress`: a callable taking a line of text, or a
     `downstream.progress.Progress` (advanced by one per UNet: `trainings(...)` of them).
 
     **Returns:** an `IspResult`. **Raises:** ValueError for unknown rows or a set too small for
@@ -377,28 +392,35 @@ def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEF
         raise ValueError(f"unknown rows {unknown}; expected some of {', '.join(ROWS)}")
     say = progress or (lambda line: None)
     start = time.perf_counter()
-    real, pairs, sources, skipped = _real_pairs(real, dngs, size, folds)
+    real, pairs, sources, skipped = _real_pairs(real, dngs, size, folds, masks)
+    test_masks = pairs[2] if len(pairs) > 2 else None
     for name, reason in skipped:
         say(f"left out {name}: {reason}")
     linear = cg_images if len(cg_images) and np.asarray(cg_images[0]).dtype == np.float32 else _sets.linear_images(cg_images)
     sets = _RowSets(real, pairs, profile, shipped if shipped is not None else profile, linear, n=n, size=size,
                     view_size=size // 2, illuminant_model=illuminant_model,
-                    single_light=single_light, lights=lights)
+                    single_light=single_light, lights=lights, masks=test_masks)
     fold_sets = folds_of(len(real.images), folds, 0, groups=real.groups)
     shown = _examples(fold_sets)
     names = [getattr(sources[i], "name", str(sources[i])) for i in shown]
     examples = {"names": names, "target": pairs[1][shown], "predicted": {r: np.zeros_like(pairs[1][shown]) for r in rows}}
     metrics = {(r, m): [] for r in rows for m in METRICS}
+    unmasked = {key: [] for key in metrics} if test_masks is not None else {}
     for seed in seeds:
         per_fold = {key: [] for key in metrics}
+        per_fold_unmasked = {key: [] for key in unmasked}
         for fold, test in enumerate(fold_sets):
             train = np.setdiff1d(np.arange(len(real.images)), test)
             training_sets = [sets.build(row, train, fold, seed) for row in rows]
             models = isp_net.train_many(training_sets, [1000 * seed + fold] * len(rows), training)
             for row, model in zip(rows, models):
                 predicted = isp_net.predict(model, pairs[0][test])
-                for metric, values in isp_net.measure(predicted, pairs[1][test]).items():
+                mask = None if test_masks is None else test_masks[test]
+                for metric, values in isp_net.measure(predicted, pairs[1][test], mask).items():
                     per_fold[(row, metric)].append(values)
+                if unmasked:
+                    for metric, values in isp_net.measure(predicted, pairs[1][test]).items():
+                        per_fold_unmasked[(row, metric)].append(values)
                 if seed == seeds[0]:
                     for k, index in enumerate(shown):
                         if index in test:
@@ -407,7 +429,9 @@ def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEF
             say(f"{real.name}: ISP seed {seed}, fold {fold + 1}/{folds} done ({time.perf_counter() - start:.0f} s)")
         for key, parts in per_fold.items():
             metrics[key].append(np.concatenate(parts))
+        for key, parts in per_fold_unmasked.items():
+            unmasked[key].append(np.concatenate(parts))
     return IspResult(camera=real.name, rows=tuple(rows), seeds=tuple(seeds), folds=folds, n=n, size=size,
                      metrics=metrics, images=len(real.images), seconds=time.perf_counter() - start,
                      notes=list(dict.fromkeys(sets.notes)), skipped=list(skipped), examples=examples,
-                     training=dataclasses.asdict(training))
+                     training=dataclasses.asdict(training), unmasked=unmasked)

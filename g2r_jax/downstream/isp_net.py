@@ -148,15 +148,26 @@ def init_unet(seed: int, width: int = 8) -> IspUNet:
                    jnp.zeros(4 * width + 4, jnp.float32))
 
 
+def _masked_l1(predicted, targets, weights, axis=None):
+    """Mean absolute error over the pixels of weight 1 (weights (N, 1, H, W), 0 or 1)."""
+    total = jnp.sum(jnp.abs(predicted - targets) * weights, axis=axis)
+    return total / jnp.maximum(predicted.shape[1] * jnp.sum(weights, axis=axis), 1.0)
+
+
 def _step_loss(model, indices, data):
-    """L1 between the UNet's output and the targets of the step's images (`indices` into data)."""
-    packed, targets = data
-    return jnp.mean(jnp.abs(model(packed[indices]) - targets[indices]))
+    """L1 between the UNet's output and the targets of the step's images (`indices` into data),
+    over the pixels the data holds (weights 1; the real thumbnails' masked pixels 0)."""
+    packed, targets, weights = data
+    return _masked_l1(model(packed[indices]), targets[indices], weights[indices])
 
 
-def _channels_first(packed, targets):
-    return (np.ascontiguousarray(np.asarray(packed, np.float32).transpose(0, 3, 1, 2)),
-            np.ascontiguousarray(np.asarray(targets, np.float32).transpose(0, 3, 1, 2)))
+def _channels_first(packed, targets, mask=None):
+    """(packed, targets, weights) channels first; weights (N, 1, H, W) float32 from the (N, H, W)
+    `mask` (True: trained on), 1 everywhere without one."""
+    targets = np.ascontiguousarray(np.asarray(targets, np.float32).transpose(0, 3, 1, 2))
+    weights = (np.ones((len(targets), 1) + targets.shape[2:], np.float32) if mask is None
+               else np.asarray(mask, np.float32)[:, None])
+    return np.ascontiguousarray(np.asarray(packed, np.float32).transpose(0, 3, 1, 2)), targets, weights
 
 
 def _config(training: IspTraining, scan: bool) -> LoopConfig:
@@ -179,67 +190,67 @@ def _together(training: IspTraining) -> bool:
 
 
 def _validation_error(model, validation):
-    """Mean L1 error of the model on the held-out pairs (weights 0 on padding)."""
-    packed, targets, weights = validation
-    errors = jnp.mean(jnp.abs(model(packed) - targets), axis=(1, 2, 3))
-    return jnp.sum(errors * weights) / jnp.maximum(jnp.sum(weights), 1.0)
+    """Mean masked L1 error of the model on the held-out pairs (pairs weighted 0 are padding)."""
+    packed, targets, weights, pair_weights = validation
+    errors = _masked_l1(model(packed), targets, weights, axis=(1, 2, 3))
+    return jnp.sum(errors * pair_weights) / jnp.maximum(jnp.sum(pair_weights), 1.0)
 
 
-def _split(packed, targets, seed: int, share: float):
+def _split(arrays, seed: int, share: float):
     """(training arrays, held-out arrays): `share` of the pairs held out by a seeded permutation
     (none when fewer than 10 pairs or `share` is 0)."""
-    count = len(packed)
+    count = len(arrays[0])
     held = int(round(share * count)) if count >= 10 else 0
     if held < 1:
-        return (packed, targets), None
+        return arrays, None
     order = np.random.default_rng([int(seed), 11]).permutation(count)
     keep, out = np.sort(order[held:]), np.sort(order[:held])
-    return (packed[keep], targets[keep]), (packed[out], targets[out])
+    return tuple(a[keep] for a in arrays), tuple(a[out] for a in arrays)
 
 
 def _padded_validation(held, capacity: int):
-    """(packed, targets, weights) of `capacity` pairs: the held-out ones, then copies weighted 0."""
-    packed, targets = held
-    weights = np.r_[np.ones(len(packed)), np.zeros(capacity - len(packed))].astype(np.float32)
+    """(packed, targets, weights, pair weights) of `capacity` pairs: the held-out ones, then
+    copies weighted 0."""
+    pair_weights = np.r_[np.ones(len(held[0])), np.zeros(capacity - len(held[0]))].astype(np.float32)
     pad = lambda a: np.concatenate([a, np.repeat(a[:1], capacity - len(a), axis=0)])
-    return pad(packed), pad(targets), weights
+    return (*(pad(a) for a in held), pair_weights)
 
 
 def train_many(sets, seeds, training: IspTraining = IspTraining()) -> list:
     """One UNet per training set, each from its seed's initialisation, batches and held-out share
     (deterministic).
 
-    **Arguments:** `sets`: (packed (N, h, w, 4), targets (N, 2h, 2w, 3)) pairs of arrays, all of
-    one image size; `seeds`: one per set; `training`: an `IspTraining`. With `together` the sets
+    **Arguments:** `sets`: (packed (N, h, w, 4), targets (N, 2h, 2w, 3)[, mask (N, 2h, 2w)])
+    arrays, all of one image size (a mask's False pixels are out of the loss); `seeds`: one per set; `training`: an `IspTraining`. With `together` the sets
     are padded to one length and trained as one vmapped program.
     **Returns:** one trained `IspUNet` per set.
     """
     if len(sets) != len(seeds):
         raise ValueError(f"{len(sets)} training sets but {len(seeds)} seeds")
-    if min((len(p) for p, _ in sets), default=1) < 1:
+    if min((len(arrays[0]) for arrays in sets), default=1) < 1:
         raise ValueError("an ISP training set is empty")
-    splits = [_split(*_channels_first(p, t), s, training.validation) for (p, t), s in zip(sets, seeds)]
+    splits = [_split(_channels_first(*arrays), s, training.validation) for arrays, s in zip(sets, seeds)]
     prepared, held = [a for a, _ in splits], [b for _, b in splits]
-    counts = [len(p) for p, _ in prepared]
+    counts = [len(arrays[0]) for arrays in prepared]
     models = [init_unet(int(s), training.width) for s in seeds]
     validate = None if any(h is None for h in held) else _validation_error
     if _together(training) and len(sets) > 1:
         capacity = max(counts)
         pad = lambda a: np.concatenate([a, np.repeat(a[:1], capacity - len(a), axis=0)])
-        data = tuple(jnp.asarray(np.stack([pad(arrays[i]) for arrays in prepared])) for i in (0, 1))
+        data = tuple(jnp.asarray(np.stack([pad(arrays[i]) for arrays in prepared])) for i in range(3))
         stacked = jax.tree_util.tree_map(lambda *leaves: jnp.stack(leaves), *models)
         checks = None
         if validate is not None:
             parts = [_padded_validation(h, max(len(v[0]) for v in held)) for h in held]
-            checks = tuple(jnp.asarray(np.stack([part[i] for part in parts])) for i in range(3))
+            checks = tuple(jnp.asarray(np.stack([part[i] for part in parts])) for i in range(4))
         result = fit(stacked, _step_loss, _index_rounds(counts, seeds, training), data, _config(training, True),
                      validate=validate, validation_data=checks, members=True)
         return [jax.tree_util.tree_map(lambda a: a[m], result.model) for m in range(len(sets))]
     out = []
-    for model, (packed, targets), count, seed, h in zip(models, prepared, counts, seeds, held):
+    for model, arrays, count, seed, h in zip(models, prepared, counts, seeds, held):
         rounds = _index_rounds([count], [seed], training)
         checks = None if validate is None else tuple(jnp.asarray(a) for a in _padded_validation(h, len(h[0])))
-        result = fit(model, _step_loss, lambda r: rounds(r)[0], (jnp.asarray(packed), jnp.asarray(targets)),
+        result = fit(model, _step_loss, lambda r: rounds(r)[0], tuple(jnp.asarray(a) for a in arrays),
                      _config(training, False), validate=validate, validation_data=checks)
         out.append(result.model)
     return out
@@ -262,12 +273,26 @@ def predict(model: IspUNet, packed: np.ndarray, chunk: int = 64) -> np.ndarray:
 
 # ---------------------------------------------------------------- measures
 
-def psnr(predicted: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Per-image PSNR (dB) of images in [0, 1]: 10 log10(1 / MSE), MSE over pixels and channels.
+def _pixel_weights(mask, shape) -> np.ndarray:
+    """(N, H, W) float64 weights of the measured pixels: the mask, or 1 everywhere."""
+    return np.ones(shape[:3]) if mask is None else np.asarray(mask, np.float64).reshape(shape[:3])
 
-    **Arguments:** `predicted`, `target` (N, H, W, C). **Returns:** (N,) float64 (inf where equal)."""
+
+def _masked_mean(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Per-image mean of (N, ...) values over positions of weight 1; NaN for an image with none."""
+    weights = weights.reshape(len(weights), -1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.sum(values.reshape(len(values), -1) * weights, axis=1) / np.sum(weights, axis=1)
+
+
+def psnr(predicted: np.ndarray, target: np.ndarray, mask=None) -> np.ndarray:
+    """Per-image PSNR (dB) of images in [0, 1]: 10 log10(1 / MSE), MSE over pixels and channels
+    (the pixels where `mask` (N, H, W) is True, when given).
+
+    **Arguments:** `predicted`, `target` (N, H, W, C); `mask`. **Returns:** (N,) float64 (inf where
+    equal, NaN where the mask holds no pixel)."""
     diff = np.asarray(predicted, np.float64) - np.asarray(target, np.float64)
-    mse = np.mean(diff.reshape(len(diff), -1) ** 2, axis=1)
+    mse = _masked_mean(np.mean(diff ** 2, axis=-1), _pixel_weights(mask, diff.shape))
     with np.errstate(divide="ignore"):
         return 10.0 * np.log10(1.0 / mse)
 
@@ -286,15 +311,16 @@ def _filter(x: np.ndarray, window: np.ndarray) -> np.ndarray:
     return sum(window[i] * rows[:, :, i:rows.shape[2] - n + 1 + i] for i in range(n))
 
 
-def ssim(predicted: np.ndarray, target: np.ndarray, *, data_range: float = 1.0) -> np.ndarray:
+def ssim(predicted: np.ndarray, target: np.ndarray, mask=None, *, data_range: float = 1.0) -> np.ndarray:
     """Per-image SSIM (Wang, Bovik, Sheikh, Simoncelli, "Image Quality Assessment: From Error
     Visibility to Structural Similarity", IEEE TIP 13(4), 2004, Eq. 13): local means, variances
     and covariance under an 11 x 11 Gaussian window of sigma 1.5 (the paper's), 'valid' positions
     only, C1 = (0.01 L)^2, C2 = (0.03 L)^2 with L the data range; the mean over positions and
-    channels (each channel on its own).
+    channels (each channel on its own). With a `mask` (N, H, W), the mean over the positions whose
+    pixels within 3 (two sigma of the window) are all True.
 
-    **Arguments:** `predicted`, `target` (N, H, W, C), H and W at least 11; `data_range` L.
-    **Returns:** (N,) float64.
+    **Arguments:** `predicted`, `target` (N, H, W, C), H and W at least 11; `mask`; `data_range` L.
+    **Returns:** (N,) float64 (NaN where no position is measured).
     """
     x, y = np.asarray(predicted, np.float64), np.asarray(target, np.float64)
     if x.shape != y.shape or x.ndim != 4 or min(x.shape[1:3]) < 11:
@@ -306,15 +332,21 @@ def ssim(predicted: np.ndarray, target: np.ndarray, *, data_range: float = 1.0) 
     cov = _filter(x * y, window) - mu_x * mu_y
     c1, c2 = (0.01 * data_range) ** 2, (0.03 * data_range) ** 2
     index = ((2 * mu_x * mu_y + c1) * (2 * cov + c2)) / ((mu_x ** 2 + mu_y ** 2 + c1) * (var_x + var_y + c2))
-    return index.reshape(len(index), -1).mean(axis=1)
+    if mask is None:
+        return index.reshape(len(index), -1).mean(axis=1)
+    half = len(window) // 2
+    inside = _filter(_pixel_weights(mask, x.shape)[..., None], np.ones(7))[..., 0] >= 49 - 1e-9
+    inside = inside[:, half - 3:inside.shape[1] - half + 3, half - 3:inside.shape[2] - half + 3]
+    return _masked_mean(index.mean(axis=-1), inside.astype(np.float64))
 
 
-def delta_e_2000(predicted: np.ndarray, target: np.ndarray) -> np.ndarray:
+def delta_e_2000(predicted: np.ndarray, target: np.ndarray, mask=None) -> np.ndarray:
     """Per-image mean CIEDE2000 (Sharma, Wu, Dalal, Color Res. Appl. 30(1), 2005; colour-science's
     `delta_E(..., method='CIE 2000')`) between sRGB-coded images: IEC 61966-2-1 decoding, sRGB ->
     XYZ (D65), CIE Lab with the D65 white.
 
-    **Arguments:** `predicted`, `target` (N, H, W, 3) in [0, 1]. **Returns:** (N,) float64.
+    **Arguments:** `predicted`, `target` (N, H, W, 3) in [0, 1]; `mask` (N, H, W): the pixels
+    averaged (default all). **Returns:** (N,) float64 (NaN where the mask holds no pixel).
     """
     from g2r_jax.colour.conversions import MATRIX_SRGB_TO_XYZ, import_colour_science
 
@@ -326,12 +358,14 @@ def delta_e_2000(predicted: np.ndarray, target: np.ndarray) -> np.ndarray:
         linear = np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
         return colour.XYZ_to_Lab(linear @ np.asarray(MATRIX_SRGB_TO_XYZ).T, white)
 
-    difference = colour.delta_E(lab(predicted), lab(target), method="CIE 2000")
-    return np.asarray(difference, np.float64).reshape(len(difference), -1).mean(axis=1)
+    difference = np.asarray(colour.delta_E(lab(predicted), lab(target), method="CIE 2000"), np.float64)
+    return _masked_mean(difference, _pixel_weights(mask, difference.shape + (1,)))
 
 
-def measure(predicted: np.ndarray, target: np.ndarray) -> dict:
-    """{'psnr', 'ssim', 'delta_e'}: each (N,) per image (see `psnr`, `ssim`, `delta_e_2000`).
+def measure(predicted: np.ndarray, target: np.ndarray, mask=None) -> dict:
+    """{'psnr', 'ssim', 'delta_e'}: each (N,) per image (see `psnr`, `ssim`, `delta_e_2000`), over
+    the pixels of `mask` (N, H, W) when given.
 
-    **Arguments:** `predicted`, `target` (N, H, W, 3) in [0, 1]. **Returns:** the dict."""
-    return {"psnr": psnr(predicted, target), "ssim": ssim(predicted, target), "delta_e": delta_e_2000(predicted, target)}
+    **Arguments:** `predicted`, `target` (N, H, W, 3) in [0, 1]; `mask`. **Returns:** the dict."""
+    return {"psnr": psnr(predicted, target, mask), "ssim": ssim(predicted, target, mask),
+            "delta_e": delta_e_2000(predicted, target, mask)}

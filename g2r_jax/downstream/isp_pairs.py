@@ -205,7 +205,8 @@ def thumbnail_sources(images: np.ndarray, illuminants: np.ndarray, profile, name
     images, `real_sets.load_nus`): each area-averaged to `size / 2` x `size / 2` and written as a
     `size` x `size` tiled mosaic at the profile's pattern (`tile_mosaic`: each pixel one CFA
     tile), between its black and white levels, saturated pixels (0 in the thumbnails) set to
-    white, AsShotNeutral the measured light, the profile's colour tags.
+    white, AsShotNeutral the measured light, the profile's colour tags. `thumbnail_masks` says
+    which target pixels the white ones reach (out of the loss and the measures).
 
     **Arguments:** `images` (N, h, w, 3) in [0, 1], h and w at least size / 2; `illuminants`
     (N, 3); `profile` a `SensorProfile`; `names` per image (default image_NNN); `size`.
@@ -224,6 +225,29 @@ def thumbnail_sources(images: np.ndarray, illuminants: np.ndarray, profile, name
         info = dng_info_for(profile, _metadata(light / light[1]), *mosaic.shape, noise=False)
         sources.append(dng_source(mosaic, info, f"{name}.dng"))
     return sources
+
+
+def _dilate(mask: np.ndarray) -> np.ndarray:
+    """(N, H, W) bool, each True pixel spread to its 3 x 3 neighbourhood."""
+    padded = np.pad(mask, ((0, 0), (1, 1), (1, 1)))
+    height, width = mask.shape[1:]
+    return np.any([padded[:, i:i + height, j:j + width] for i in range(3) for j in range(3)], axis=0)
+
+
+def thumbnail_masks(images: np.ndarray, *, size: int = WORKING_SIZE) -> np.ndarray:
+    """Where the targets of `thumbnail_sources` hold what the real data holds: False on every
+    target pixel that a thumbnail pixel stored as 0 (the NUS thumbnails' masked ColorChecker and
+    saturated pixels, written white) reaches: a tile whose area average takes in such a pixel,
+    spread by one pixel (LibRaw's bilinear demosaic reads the 3 x 3 neighbourhood: measured, a
+    changed tile changes the developed pixels one around it and no others).
+
+    **Arguments:** `images` (N, h, w, 3) as `thumbnail_sources` takes them; `size`.
+    **Returns:** (N, size, size) bool, True where the pixel is measured and trained on.
+    """
+    images = np.asarray(images, np.float32)
+    missing = np.all(images <= 0, axis=-1, keepdims=True).astype(np.float32)
+    tiles = np.stack([_thumbnails.area_average(m, size // 2)[..., 0] > 0 for m in missing])
+    return ~_dilate(np.repeat(np.repeat(tiles, 2, axis=1), 2, axis=2))
 
 
 @eqx.filter_jit
