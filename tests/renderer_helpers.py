@@ -29,9 +29,12 @@ from dng_reference import (D50, D65, mean_delta_E_2000, patch_camera_rgb, patch_
                            render_patches_to_XYZ_D65)
 
 ENLARGE = 4
-DEVELOPERS = ("model", "adobe_sdk", "libraw", "darktable", "rawtherapee")
-LABELS = {"model": "DNG colour model (colour_hdri, control)", "adobe_sdk": "Adobe DNG SDK 1.7.1 (dngpy's libdng)",
-          "libraw": "LibRaw 0.22.2 (rawpy)", "darktable": "darktable-cli 4.2.1",
+DEVELOPERS = ("model", "one_matrix", "adobe_sdk", "libraw", "darktable", "darktable_modern", "rawtherapee")
+CONTROLS = {"model": "render_model", "one_matrix": "render_one_matrix"}   # per-box, no image
+LABELS = {"model": "DNG colour model (colour_hdri, control)",
+          "one_matrix": "prediction: one ColorMatrix (highest temperature), dcraw's method", "adobe_sdk": "Adobe DNG SDK 1.7.1 (dngpy's libdng)",
+          "libraw": "LibRaw 0.22.2 (rawpy)", "darktable": "darktable-cli 4.2.1 (legacy white balance)",
+          "darktable_modern": "darktable-cli 4.2.1 (color calibration, modern)",
           "rawtherapee": "rawtherapee-cli 5.9"}
 SDK_RENDER_ENV = "G2R_SDK_RENDER"
 
@@ -192,6 +195,24 @@ def render_model(dng_path: Path, boxes) -> np.ndarray:
     return render_patches_to_XYZ_D65(patch_camera_rgb(dng_path, boxes), read_dng_info(dng_path))
 
 
+def render_one_matrix(dng_path: Path, boxes) -> np.ndarray:
+    """A prediction for a developer that uses one ColorMatrix for every white, as dcraw does
+    (`cam_xyz_coeff`): the ColorMatrix of the highest calibration temperature (D65 for most
+    cameras, D50 for the GoPro) times sRGB -> XYZ, rows scaled to sum to 1 (camera white -> sRGB
+    white), inverted, applied to each box's camera RGB divided by AsShotNeutral (white balance as
+    gains on the camera's channels). **Returns:** XYZ (D65) per box."""
+    from g2r_jax.colour import conversions as gc
+    from g2r_jax.colour.dng_model import calibration_illuminant_cct
+    from g2r_jax.io.dng_read import read_dng_info
+
+    info = read_dng_info(dng_path)
+    hottest = int(np.argmax([calibration_illuminant_cct(code) for code in info.calibration_illuminants]))
+    camera_from_srgb = np.asarray(info.color_matrices[hottest], np.float64) @ gc.MATRIX_SRGB_TO_XYZ
+    camera_from_srgb /= camera_from_srgb.sum(axis=1, keepdims=True)
+    balanced = patch_camera_rgb(dng_path, boxes) / np.asarray(info.as_shot_neutral, np.float64)
+    return balanced @ np.linalg.inv(camera_from_srgb).T @ gc.MATRIX_SRGB_TO_XYZ.T
+
+
 def sdk_render_program() -> str | None:
     """The `sdk_render` program (benchmarks/dng_sdk_render.cpp built as benchmarks/dng_sdk_padding.py
     says): `$G2R_SDK_RENDER`, else `sdk_render` on the PATH, else None."""
@@ -251,24 +272,32 @@ def render_libraw(dng_path: Path, workdir: Path) -> np.ndarray:
     return image @ gc.MATRIX_SRGB_TO_XYZ.T
 
 
-DARKTABLE_CONF = ("plugins/darkroom/workflow=none", "plugins/darkroom/chromatic-adaptation=legacy",
-                  "plugins/imageio/format/tiff/bpp=32")
+DARKTABLE_CONF = ("plugins/darkroom/workflow=none", "plugins/imageio/format/tiff/bpp=32")
 DARKTABLE_ARGUMENTS = ("--icc-type", "LIN_REC709")
 
 
-def render_darktable(dng_path: Path, workdir: Path) -> np.ndarray:
+def render_darktable(dng_path: Path, workdir: Path, adaptation: str = "legacy") -> np.ndarray:
     """darktable-cli, a fresh config folder, no sidecar: workflow none (no filmic, sigmoid, base
-    curve or exposure module), legacy chromatic adaptation (white balance module at the camera's
-    white, no color calibration), the input profile's default (the DNG's standard colour matrix),
-    linear Rec.709 output as 32-bit float TIFF; decoded through the TIFF's embedded ICC profile."""
-    out = workdir / "darktable.tif"
+    curve or exposure module), `plugins/darkroom/chromatic-adaptation` `legacy` (the white balance
+    module at the camera's white, no color calibration) or `modern` (white balance at the camera's
+    D65 reference, then color calibration from the as-shot white), the input profile's default
+    (the DNG's standard colour matrix), linear Rec.709 output as 32-bit float TIFF; decoded
+    through the TIFF's embedded ICC profile. History applied (as the TIFF's XMP lists it):
+    rawprepare, demosaic, colorin, colorout, gamma, temperature, highlights, flip
+    (+ channelmixerrgb with `modern`)."""
+    out = workdir / f"darktable_{adaptation}.tif"
     command = ["darktable-cli", str(dng_path), str(out), *DARKTABLE_ARGUMENTS, "--core",
                "--configdir", str(workdir / "dt_config"), "--cachedir", str(workdir / "dt_cache"),
                "--library", ":memory:"]
-    for setting in DARKTABLE_CONF:
+    for setting in (*DARKTABLE_CONF, f"plugins/darkroom/chromatic-adaptation={adaptation}"):
         command += ["--conf", setting]
     subprocess.run(command, capture_output=True, text=True, check=True, timeout=300)
     return icc_to_XYZ_D65(*read_tiff_with_icc(out))
+
+
+def render_darktable_modern(dng_path: Path, workdir: Path) -> np.ndarray:
+    """`render_darktable` with modern chromatic adaptation (darktable 4.2's default)."""
+    return render_darktable(dng_path, workdir, "modern")
 
 
 RAWTHERAPEE_PP3 = """[Version]
@@ -309,21 +338,23 @@ def render_rawtherapee(dng_path: Path, workdir: Path) -> np.ndarray:
 
 
 RENDERERS = {"adobe_sdk": render_adobe_sdk, "libraw": render_libraw, "darktable": render_darktable,
-             "rawtherapee": render_rawtherapee}
+             "darktable_modern": render_darktable_modern, "rawtherapee": render_rawtherapee}
 
 
 def missing(developer: str) -> str | None:
     """Why `developer` cannot run here, or None when it can."""
     import importlib.util
 
-    need = {"model": ["colour_hdri", "rawpy"], "libraw": ["rawpy"]}.get(developer, [])
+    need = {"model": ["colour_hdri", "rawpy"], "one_matrix": ["colour_hdri", "rawpy"],
+            "libraw": ["rawpy"]}.get(developer, [])
     for module in need:
         if importlib.util.find_spec(module) is None:
             return f"python package {module} is not installed"
     if developer == "adobe_sdk" and sdk_render_program() is None:
         return (f"no sdk_render program (set ${SDK_RENDER_ENV} or put it on the PATH; build: "
                 "benchmarks/dng_sdk_padding.py)")
-    program = {"darktable": "darktable-cli", "rawtherapee": "rawtherapee-cli"}.get(developer)
+    program = {"darktable": "darktable-cli", "darktable_modern": "darktable-cli",
+               "rawtherapee": "rawtherapee-cli"}.get(developer)
     if program and shutil.which(program) is None:
         return f"{program} is not on the PATH"
     return None
@@ -346,8 +377,8 @@ def box_means(image: np.ndarray, boxes, shape) -> np.ndarray:
 
 def developer_XYZ(developer: str, dng_path: Path, boxes, workdir: Path) -> np.ndarray:
     """XYZ (D65) per box as `developer` renders the DNG (see `DEVELOPERS`)."""
-    if developer == "model":
-        return render_model(dng_path, boxes)
+    if developer in CONTROLS:
+        return globals()[CONTROLS[developer]](dng_path, boxes)
     from g2r_jax.io.dng_read import read_dng_info
 
     info = read_dng_info(dng_path)

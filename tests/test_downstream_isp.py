@@ -193,3 +193,53 @@ def test_rows_trained_together_match_one_at_a_time(profile):
     together = isp_net.train_many(sets, [0, 1], isp_net.IspTraining(together=True, **config))
     for a, b in zip(apart, together):
         assert np.allclose(isp_net.predict(a, packed), isp_net.predict(b, packed), atol=1e-4)
+
+
+def test_masks_cover_what_a_masked_pixel_reaches_in_the_target(profile):
+    """A thumbnail pixel stored as 0 (masked chart, saturation) changes the developed target only
+    where `thumbnail_masks` says, and the mask leaves the rest."""
+    images = np.full((1, 64, 64, 3), 0.3, np.float32)
+    holed = images.copy()
+    holed[0, 20:23, 30:31] = 0.0                      # takes in two tiles: rows 10-11, column 15
+    light = np.array([[0.5, 1.0, 0.6]])
+    plain, masked = (reference_render.develop(isp_pairs.thumbnail_sources(x, light, profile)[0].data)
+                     for x in (images, holed))
+    changed = np.abs(plain - masked).max(-1) > 1e-4
+    mask = isp_pairs.thumbnail_masks(holed)[0]
+    assert changed.any() and not np.any(changed & mask)
+    assert (~mask).sum() == 6 * 4                     # two tiles (4 x 2 pixels) spread by one pixel
+    assert isp_pairs.thumbnail_masks(images).all()
+
+
+def test_masked_measures_ignore_the_masked_pixels():
+    rng = np.random.default_rng(3)
+    target = rng.random((2, 32, 32, 3))
+    predicted = target + 0.01 * rng.standard_normal(target.shape)
+    mask = np.ones((2, 32, 32), bool)
+    mask[:, 4:12, 20:30] = False
+    spoiled = predicted.copy()
+    spoiled[:, 4:12, 20:30] = 1.0 - target[:, 4:12, 20:30]          # wrong only where masked
+    clean, wrong = isp_net.measure(predicted, target, mask), isp_net.measure(spoiled, target, mask)
+    for metric in isp.METRICS:
+        np.testing.assert_allclose(wrong[metric], clean[metric], rtol=1e-9, err_msg=metric)
+    unmasked = isp_net.measure(spoiled, target)
+    assert np.all(unmasked["psnr"] < clean["psnr"] - 3) and np.all(unmasked["delta_e"] > clean["delta_e"])
+    np.testing.assert_allclose(isp_net.measure(predicted, target, np.ones((2, 32, 32), bool))["psnr"],
+                               isp_net.psnr(predicted, target))
+    assert np.isnan(isp_net.psnr(predicted, target, np.zeros((2, 32, 32), bool))).all()
+
+
+def test_masked_pixels_are_out_of_the_loss(profile):
+    """Training on pairs whose masked pixels hold nonsense gives the same network as training on
+    the same pairs with those pixels set to anything else."""
+    sources = _sources(profile, 4)[0]
+    packed, targets, _, _ = isp_pairs.pairs_of(sources)
+    mask = np.ones(targets.shape[:3], bool)
+    mask[:, 10:30, 5:40] = False
+    other = targets.copy()
+    other[:, 10:30, 5:40] = 1.0 - other[:, 10:30, 5:40]
+    config = isp_net.IspTraining(steps=3, steps_per_round=3, batch=2, width=2, together=False)
+    a, b = (isp_net.train_many([(packed, t, mask)], [0], config)[0] for t in (targets, other))
+    np.testing.assert_allclose(isp_net.predict(a, packed), isp_net.predict(b, packed), atol=1e-6)
+    c = isp_net.train_many([(packed, other)], [0], config)[0]
+    assert not np.allclose(isp_net.predict(a, packed), isp_net.predict(c, packed), atol=1e-4)

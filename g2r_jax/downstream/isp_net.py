@@ -317,7 +317,7 @@ def ssim(predicted: np.ndarray, target: np.ndarray, mask=None, *, data_range: fl
     and covariance under an 11 x 11 Gaussian window of sigma 1.5 (the paper's), 'valid' positions
     only, C1 = (0.01 L)^2, C2 = (0.03 L)^2 with L the data range; the mean over positions and
     channels (each channel on its own). With a `mask` (N, H, W), the mean over the positions whose
-    pixels within 3 (two sigma of the window) are all True.
+    whole window is True (NaN for an image with none).
 
     **Arguments:** `predicted`, `target` (N, H, W, C), H and W at least 11; `mask`; `data_range` L.
     **Returns:** (N,) float64 (NaN where no position is measured).
@@ -334,9 +334,8 @@ def ssim(predicted: np.ndarray, target: np.ndarray, mask=None, *, data_range: fl
     index = ((2 * mu_x * mu_y + c1) * (2 * cov + c2)) / ((mu_x ** 2 + mu_y ** 2 + c1) * (var_x + var_y + c2))
     if mask is None:
         return index.reshape(len(index), -1).mean(axis=1)
-    half = len(window) // 2
-    inside = _filter(_pixel_weights(mask, x.shape)[..., None], np.ones(7))[..., 0] >= 49 - 1e-9
-    inside = inside[:, half - 3:inside.shape[1] - half + 3, half - 3:inside.shape[2] - half + 3]
+    side = len(window)
+    inside = _filter(_pixel_weights(mask, x.shape)[..., None], np.ones(side))[..., 0] >= side * side - 1e-9
     return _masked_mean(index.mean(axis=-1), inside.astype(np.float64))
 
 
