@@ -82,6 +82,32 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
+def versions() -> str:
+    """The developers' versions found here, one line."""
+    import subprocess
+
+    import rawpy
+
+    found = [f"LibRaw {'.'.join(map(str, rawpy.libraw_version))} (rawpy {rawpy.__version__})"]
+    for program, option in (("darktable-cli", "--version"), ("rawtherapee-cli", "-h")):
+        try:
+            text = subprocess.run([program, option], capture_output=True, text=True, timeout=60).stdout
+            first = next(line.strip() for line in text.splitlines() if line.strip())   # names the version
+            found.append(first.removeprefix("this is ").removesuffix(", command line."))
+        except (OSError, StopIteration, subprocess.SubprocessError):
+            found.append(f"{program}: absent")
+    program = rh.sdk_render_program()
+    if program:
+        try:   # the libdng sdk_render links: the dngpy wheel's (benchmarks/dng_sdk_padding.py)
+            import dngpy
+
+            library = sorted((Path(dngpy.__file__).parents[1] / "lib").glob("libdng.so.*.*"))
+        except ImportError:
+            library = []
+        found.append(f"sdk_render {program}" + (f" (dngpy's {library[-1].name})" if library else ""))
+    return "; ".join(found)
+
+
 def available(developers) -> list:
     """The developers that can run here; prints a line for each one skipped."""
     present = []
@@ -139,6 +165,7 @@ def main(argv=None) -> int:
         os.environ[rh.SDK_RENDER_ENV] = str(Path(args.sdk_render).resolve())
     profiles = [p for p in args.profiles.split(",") if p]
     ccts = [int(c) for c in args.ccts.split(",") if c]
+    print(versions(), flush=True)
     developers = available([d for d in args.developers.split(",") if d])
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="g2r_renderers_") as tmp:

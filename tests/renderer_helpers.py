@@ -9,9 +9,10 @@ goes to CIE XYZ (D65) from the developer's output space, and `dng_reference.mean
 (one global exposure scale on Y) compares the unclipped patches with the input's XYZ.
 
 Each developer is a function `(dng_path, workdir) -> (H, W, 3) XYZ (D65-adapted) image`, except
-the control `model`, which maps the DNG's patch means straight to XYZ (`dng_reference`). The
-settings of each are stated next to it (`DARKTABLE_ARGUMENTS`, `RAWTHERAPEE_PP3`,
-`LIBRAW_OPTIONS`, `sdk_render`).
+the control `model` and the prediction `one_matrix`, which map the DNG's raw patch means straight
+to XYZ (`CONTROLS`). The
+settings of each are stated next to it (`libraw_options`, `DARKTABLE_CONF`,
+`DARKTABLE_ARGUMENTS`, `RAWTHERAPEE_PP3`, `render_adobe_sdk`).
 """
 
 from __future__ import annotations
@@ -31,11 +32,11 @@ from dng_reference import (D50, D65, mean_delta_E_2000, patch_camera_rgb, patch_
 ENLARGE = 4
 DEVELOPERS = ("model", "one_matrix", "adobe_sdk", "libraw", "darktable", "darktable_modern", "rawtherapee")
 CONTROLS = {"model": "render_model", "one_matrix": "render_one_matrix"}   # per-box, no image
-LABELS = {"model": "DNG colour model (colour_hdri, control)",
-          "one_matrix": "prediction: one ColorMatrix (highest temperature), dcraw's method", "adobe_sdk": "Adobe DNG SDK 1.7.1 (dngpy's libdng)",
-          "libraw": "LibRaw 0.22.2 (rawpy)", "darktable": "darktable-cli 4.2.1 (legacy white balance)",
-          "darktable_modern": "darktable-cli 4.2.1 (color calibration, modern)",
-          "rawtherapee": "rawtherapee-cli 5.9"}
+LABELS = {"model": "DNG colour model (colour_hdri), control",
+          "one_matrix": "prediction: one ColorMatrix, dcraw's method",
+          "adobe_sdk": "Adobe DNG SDK (sdk_render)", "libraw": "LibRaw (rawpy)",
+          "darktable": "darktable-cli, legacy white balance", "darktable_modern": "darktable-cli, color calibration",
+          "rawtherapee": "rawtherapee-cli"}
 SDK_RENDER_ENV = "G2R_SDK_RENDER"
 
 

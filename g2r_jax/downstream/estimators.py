@@ -113,17 +113,29 @@ def moment_features(images) -> np.ndarray:
     return np.concatenate(features, axis=1).astype(np.float64)
 
 
-def train_moments(images, illuminants, *, seed: int = 0, ridge: float = 1e-6) -> Predictor:
+def _sample_weights(weights, count: int, who: str) -> np.ndarray:
+    """Per-image weights of a least-squares fit, scaled to sum to `count` (1 each without)."""
+    if weights is None:
+        return np.ones(count)
+    weights = np.asarray(weights, np.float64)
+    if weights.shape != (count,) or not np.all(np.isfinite(weights)) or np.any(weights < 0) or weights.sum() <= 0:
+        raise ValueError(f"{who}: weights must be ({count},) non-negative, not all 0")
+    return weights * (count / weights.sum())
+
+
+def train_moments(images, illuminants, *, seed: int = 0, ridge: float = 1e-6, weights=None) -> Predictor:
     """Corrected moments (Finlayson, ICCV 2013, Sec. 3): light = [features, 1] @ C, C by least squares.
 
-    `ridge` (times the number of images) keeps C defined when features are collinear; `seed` is
-    unused (closed form), accepted for a common signature.
+    `ridge` (times the number of images) keeps C defined when features are collinear; `weights`
+    (N,): each image's weight in the least squares (augmentation's mixed sets), equal without;
+    `seed` is unused (closed form), accepted for a common signature.
     """
     x = _check_images(images, "moments")
     target = _check_lights(illuminants, len(x), "moments")
+    w = _sample_weights(weights, len(x), "moments")[:, None]
     design = np.c_[moment_features(x), np.ones(len(x))]
-    gram = design.T @ design + ridge * len(x) * np.eye(design.shape[1])
-    correction = np.linalg.solve(gram, design.T @ target)
+    gram = design.T @ (w * design) + ridge * len(x) * np.eye(design.shape[1])
+    correction = np.linalg.solve(gram, design.T @ (w * target))
 
     def predict(test_images) -> np.ndarray:
         t = _check_images(test_images, "moments predictor")
@@ -169,22 +181,25 @@ def histogram_features(images, grid: HistogramGrid) -> np.ndarray:
 
 
 def train_histogram(images, illuminants, *, seed: int = 0, ridge: float = 1e-2,
-                    half_width: float = 1.6, bins: int = 32) -> Predictor:
+                    half_width: float = 1.6, bins: int = 32, weights=None) -> Predictor:
     """Ridge regression histogram -> illuminant log-chroma (linear, in the spirit of Barron 2015).
 
     The grid is centred on the training lights' mean log-chroma (pixels are surface chroma plus
     light chroma, Barron Eq. 3, so the lights fix where the mass lies); `ridge` times the number of
-    images is the Tikhonov weight on centred features. `seed` is unused (closed form).
+    images is the Tikhonov weight on centred features; `weights` (N,) each image's weight in the
+    means and the least squares (equal without). `seed` is unused (closed form).
     """
     x = _check_images(images, "histogram")
     lights = _check_lights(illuminants, len(x), "histogram")
+    w = _sample_weights(weights, len(x), "histogram")[:, None]
     target = log_chroma(lights)
-    grid = HistogramGrid(centre=tuple(float(c) for c in target.mean(0)), half_width=half_width, bins=bins)
+    mean_target = (w * target).sum(0) / w.sum()
+    grid = HistogramGrid(centre=tuple(float(c) for c in mean_target), half_width=half_width, bins=bins)
     features = histogram_features(x, grid)
-    mean_feature, mean_target = features.mean(0), target.mean(0)
+    mean_feature = (w * features).sum(0) / w.sum()
     centred = features - mean_feature
-    gram = centred.T @ centred + ridge * len(x) * np.eye(centred.shape[1])
-    weights = np.linalg.solve(gram, centred.T @ (target - mean_target))
+    gram = centred.T @ (w * centred) + ridge * len(x) * np.eye(centred.shape[1])
+    weights = np.linalg.solve(gram, centred.T @ (w * (target - mean_target)))
 
     def predict(test_images) -> np.ndarray:
         t = _check_images(test_images, "histogram predictor")
@@ -324,12 +339,16 @@ def _split(images: np.ndarray, fraction: float, limit: int, rng: np.random.Gener
     return np.flatnonzero(~is_val), val
 
 
-def _random_crops(key, patch: int, batch: int, train_x, train_y, n_train):
-    """`batch` random patch x patch crops of the first `n_train` images, each flipped at random
-    left-right and up-down, with their lights."""
+def _random_crops(key, patch: int, batch: int, train_x, train_y, n_train, probabilities=None):
+    """`batch` random patch x patch crops of the first `n_train` images (drawn uniformly, or by
+    `probabilities` over the padded rows), each flipped at random left-right and up-down, with
+    their lights."""
     height, width = train_x.shape[1:3]
     k_index, k_y, k_x, k_flip = jax.random.split(key, 4)
-    index = jax.random.randint(k_index, (batch,), 0, n_train)
+    if probabilities is None:
+        index = jax.random.randint(k_index, (batch,), 0, n_train)
+    else:
+        index = jax.random.choice(k_index, train_x.shape[0], (batch,), p=probabilities)
     top = jax.random.randint(k_y, (batch,), 0, height - patch + 1)
     left = jax.random.randint(k_x, (batch,), 0, width - patch + 1)
     crops = jax.vmap(lambda i, t, l: jax.lax.dynamic_slice(train_x[i], (t, l, 0), (patch, patch, 3)))(index, top, left)
@@ -348,6 +367,19 @@ def _cnn_step_loss(patch: int, batch: int):
     def step_loss(model, key, data):
         train_x, train_y, n_train = data
         crops, lights = _random_crops(key, patch, batch, train_x, train_y, n_train)
+        return _angular_loss_degrees(model(crops), lights).mean()
+
+    return step_loss
+
+
+@functools.lru_cache(maxsize=None)
+def _cnn_drawn_step_loss(patch: int, batch: int):
+    """`_cnn_step_loss` with the crops' images drawn by per-image probabilities (`data`: the padded
+    training images, lights, their count and the probabilities): augmentation's mixed batches."""
+
+    def step_loss(model, key, data):
+        train_x, train_y, n_train, probabilities = data
+        crops, lights = _random_crops(key, patch, batch, train_x, train_y, n_train, probabilities)
         return _angular_loss_degrees(model(crops), lights).mean()
 
     return step_loss
@@ -387,8 +419,10 @@ class CnnPredictor:
     predict = __call__
 
 
-def _prepare(images, illuminants, seed: int, config: "CnnConfig"):
-    """(model, round keys (checkpoints, steps, 2), data, validation) of one training."""
+def _prepare(images, illuminants, seed: int, config: "CnnConfig", *, sampling=None, validation_from=None):
+    """(model, round keys (checkpoints, steps, 2), data, validation) of one training; with
+    `sampling` (N,) the crops' images are drawn by these weights (data then carries their
+    probabilities), with `validation_from` (N,) bool the validation images come from those only."""
     x = _check_images(images, "cnn")
     lights = _check_lights(illuminants, len(x), "cnn").astype(np.float32)
     binned = _bin(x, config.binning)
@@ -396,11 +430,16 @@ def _prepare(images, illuminants, seed: int, config: "CnnConfig"):
         raise ValueError(f"cnn: images of {x.shape[1]} x {x.shape[2]} binned {config.binning}x are smaller "
                          f"than the {config.patch}-pixel training patch")
     rng = np.random.default_rng(seed)
-    train, val = _split(x, config.validation_fraction, config.max_validation, rng)
+    pool = np.arange(len(x)) if validation_from is None else np.flatnonzero(validation_from)
+    val = pool[_split(x[pool], config.validation_fraction, config.max_validation, rng)[1]]
+    train = np.setdiff1d(np.arange(len(x)), val)
     capacity = _bucket(len(train), 256)
     val_w = np.zeros(config.max_validation, np.float32)
     val_w[: len(val)] = 1.0
     data = (_pad(binned[train], capacity), _pad(lights[train], capacity), np.int32(len(train)))
+    if sampling is not None:
+        drawn = _pad(np.asarray(sampling, np.float32)[train], capacity)
+        data = data + (drawn / drawn.sum(),)
     validation = (_pad(binned[val], config.max_validation), _pad(lights[val], config.max_validation), val_w)
     keys = jax.vmap(lambda k: jax.random.split(k, config.steps_per_checkpoint))(
         jax.random.split(jax.random.PRNGKey(seed), config.checkpoints))
@@ -415,11 +454,19 @@ def _predictor(fitted: FitResult, config, member=None) -> CnnPredictor:
                         validation_error=float(np.min(curve)), curve=(curve, losses))
 
 
-def train_cnn(images, illuminants, *, seed: int = 0, config: CnnConfig = CnnConfig()) -> CnnPredictor:
+def train_cnn(images, illuminants, *, seed: int = 0, config: CnnConfig = CnnConfig(), init=None,
+              sampling=None, validation_from=None) -> CnnPredictor:
     """Train Gong's convolutional-mean CNN (see the module docstring) with `training.fit`: Adam at
-    a constant rate, the best of `checkpoints` rounds by validation error; deterministic for a seed."""
-    model, keys, data, validation = _prepare(images, illuminants, seed, config)
-    fitted = fit(model, _cnn_step_loss(config.patch, config.batch), lambda r: keys[r], data, _loop_config(config),
+    a constant rate, the best of `checkpoints` rounds by validation error; deterministic for a seed.
+
+    For augmentation (`downstream.augmentation`): `init` a `ConvolutionalMean` to start from (fine-
+    tuning; default `cnn_init(seed)`); `sampling` (N,) non-negative weights by which each step's
+    crops draw their images (default: uniformly); `validation_from` (N,) bool: the images the
+    checkpoints' validation split is drawn from (default: all)."""
+    model, keys, data, validation = _prepare(images, illuminants, seed, config, sampling=sampling,
+                                             validation_from=validation_from)
+    step_loss = (_cnn_step_loss if sampling is None else _cnn_drawn_step_loss)(config.patch, config.batch)
+    fitted = fit(model if init is None else init, step_loss, lambda r: keys[r], data, _loop_config(config),
                  validate=_cnn_validation_error, validation_data=validation)
     return _predictor(fitted, config)
 
@@ -452,12 +499,18 @@ def train_many_cnn(sets: Sequence[tuple], seeds: Sequence[int], *,
 _TRAINERS = {"cnn": train_cnn, "moments": train_moments, "histogram": train_histogram}
 
 
-def train_estimator(kind: str, images, illuminants, *, seed: int = 0) -> Predictor:
+def train_estimator(kind: str, images, illuminants, *, seed: int = 0, weights=None) -> Predictor:
     """Train estimator `kind` (one of `ESTIMATORS`) on thumbnails and their lights; deterministic
-    for a seed. **Returns:** `predict(images) -> (M, 3)` unit-norm camera-RGB estimates."""
+    for a seed. `weights` (N,): each image's share of the training (the closed forms' least
+    squares; the CNN's crops are drawn by them). **Returns:** `predict(images) -> (M, 3)` unit-norm
+    camera-RGB estimates."""
     if kind not in _TRAINERS:
         raise ValueError(f"unknown estimator {kind!r}; expected one of {', '.join(ESTIMATORS)}")
-    return _TRAINERS[kind](images, illuminants, seed=seed)
+    if weights is None:
+        return _TRAINERS[kind](images, illuminants, seed=seed)
+    if kind == "cnn":
+        return train_cnn(images, illuminants, seed=seed, sampling=weights)
+    return _TRAINERS[kind](images, illuminants, seed=seed, weights=weights)
 
 
 def train_many(kind: str, sets: Sequence[tuple], seeds: Sequence[int]) -> list:

@@ -26,7 +26,12 @@ Rows (`ROWS`):
   illuminant model costs);
 - other_content: real images of other scenes (another camera's, rendered to sRGB at their
   white) made RAW for this camera with the fitted model (content that is real but not this set's);
-- upi_content: UPI on the adapted views of 'fitted' (the lead over UPI on equal content).
+- upi_content: UPI on the adapted views of 'fitted' (the lead over UPI on equal content);
+- real_plus_fitted, real_plus_upi: augmentation: the real training files together with the
+  'fitted' (or 'upi') set, the recipe (real alone, mixed, pretrained) chosen on the training files
+  only (`downstream.augmentation`).
+With `labelled`, 'real' and the augmented rows see only that many of the training files (the
+others' lights still fit the synthetic rows' illuminant model, as `g2r-fit-profile` reads a folder).
 The content's share of the gap is fitted - real_profile_light; the profile's is
 real_profile_light - real; the content model's gain is fitted_no_content - fitted.
 """
@@ -60,7 +65,10 @@ ROWS = {
     "real_profile_light": "control: real, lights from the model",
     "other_content": "control: other real scenes",
     "upi_content": "UPI on the same adapted content",
+    "real_plus_fitted": "real files + g2r_jax (recipe chosen on the training files)",
+    "real_plus_upi": "real files + UPI (recipe chosen on the training files)",
 }
+AUGMENTED_ROWS = {"real_plus_fitted": "fitted", "real_plus_upi": "upi"}   # row -> its synthetic set
 EXTRA_ROWS: dict = {}   # rows added by `register_row`: name -> builder
 SYNTHETIC_CG_ROWS = ("upi", "published", "shipped", "fitted", "fitted_no_content", "single")
 CONTROL_ROWS = ("fitted_no_content", "real_own_light", "real_other_light", "real_profile_light", "other_content")
@@ -70,7 +78,8 @@ CONTENT_ROWS = ("upi_content",)   # not default: one more training set per fold 
 # Rows trained side by side: one training keeps about one core busy (user time = wall time of
 # g2r-downstream on 200 small DNGs, 2 cores); docs/pages/validation/performance.md has the figures.
 MAX_WORKERS = 4
-DEFAULT_ROWS = tuple(r for r in ROWS if r not in ("published", "other_content") and r not in CONTENT_ROWS)
+DEFAULT_ROWS = tuple(r for r in ROWS if r not in ("published", "other_content", "real_plus_upi")
+                     and r not in CONTENT_ROWS)
 
 
 @dataclasses.dataclass
@@ -84,6 +93,9 @@ class ExperimentResult:
     errors: dict
     seconds: float = 0.0
     notes: list = dataclasses.field(default_factory=list)
+    recipes: dict = dataclasses.field(default_factory=dict)   # (augmented row, estimator) -> recipe per fold
+    labelled: Optional[int] = None
+    files: int = 0                 # real images in the experiment (folds included)
 
     def summary(self, row: str, estimator: str) -> dict:
         """Error statistics pooled over seeds, plus the spread of the seeds' means."""
@@ -95,6 +107,7 @@ class ExperimentResult:
     def to_dict(self) -> dict:
         return {"camera": self.camera, "rows": list(self.rows), "estimators": list(self.estimators),
                 "seeds": list(self.seeds), "seconds": self.seconds, "notes": self.notes,
+                "labelled": self.labelled, "files": self.files, "recipes": {f"{r}/{e}": v for (r, e), v in self.recipes.items()},
                 "summary": {f"{r}/{e}": self.summary(r, e) for r in self.rows for e in self.estimators}}
 
 
@@ -132,8 +145,9 @@ def _repeat_to(n: int, *arrays):
 class _Sets:
     """Builds and caches each row's training set for one camera, fold and seed."""
 
-    def __init__(self, real: RealSet, profile, cg_linear, *, n, illuminant_model, other, single_light, lights):
-        self.real, self.profile, self.n, self.lights = real, profile, n, lights
+    def __init__(self, real: RealSet, profile, cg_linear, *, n, illuminant_model, other, single_light, lights,
+                 labelled=None):
+        self.real, self.profile, self.n, self.lights, self.labelled = real, profile, n, lights, labelled
         self.cg_linear, self.illuminant_model, self.other = cg_linear, illuminant_model, other
         self.single_light = single_light
         self.cache = {}
@@ -162,6 +176,14 @@ class _Sets:
             self.cache[key] = fitted_illuminants(self.profile, lights, self.illuminant_model, seed)
         return self.cache[key]
 
+    def labelled_files(self, train: np.ndarray, fold: int, seed: int) -> np.ndarray:
+        """The training files 'real' and the augmented rows see: all, or `labelled` of them drawn
+        at random (seeded by fold and seed; the same for every such row)."""
+        if self.labelled is None or self.labelled >= len(train):
+            return train
+        pick = np.random.default_rng(1000 * seed + 10 * fold + 11).choice(len(train), self.labelled, replace=False)
+        return np.sort(train[pick])
+
     def fitted_to(self, lights: np.ndarray, seed: int):
         """The profile with its illuminant model fitted to `lights` (N, 3), this experiment's kind."""
         return fitted_illuminants(self.profile, lights, self.illuminant_model, seed)
@@ -171,7 +193,8 @@ class _Sets:
         the rows are built side by side, so that no two threads make the same thing."""
         from g2r_jax.downstream import content_rows
 
-        if set(rows) & set(SYNTHETIC_CG_ROWS + CONTENT_ROWS):
+        rows = set(rows) | {AUGMENTED_ROWS[r] for r in rows if r in AUGMENTED_ROWS}
+        if rows & set(SYNTHETIC_CG_ROWS + CONTENT_ROWS):
             self.views(seed)
         if set(rows) & {"fitted", "fitted_no_content", "published", "real_profile_light", "other_content"}:
             self.fitted(train, fold, seed)
@@ -185,8 +208,12 @@ class _Sets:
 
         real = self.real
         salt = 1000 * seed + 10 * fold
-        if row == "real":
-            return real.images[train], real.illuminants[train]
+        if row == "real" or row in AUGMENTED_ROWS:
+            from g2r_jax.downstream.augmentation import AugmentedSet
+
+            labelled = self.labelled_files(train, fold, seed)
+            files = (real.images[labelled], real.illuminants[labelled])
+            return files if row == "real" else AugmentedSet(real=files, synthetic=self.build(AUGMENTED_ROWS[row], train, fold, seed))
         if row == "upi":
             key = ("upi", seed)
             if key not in self.cache:
@@ -241,7 +268,7 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
                           seeds=(0, 1, 2), n: int = 1000, folds: int = 3, illuminant_model: str = "auto",
                           single_light: str = "auto", lights: Optional[int] = None, other: Optional[tuple] = None,
                           progress: Optional[Callable[[str], None]] = None,
-                          workers: Optional[int] = None) -> ExperimentResult:
+                          workers: Optional[int] = None, labelled: Optional[int] = None) -> ExperimentResult:
     """Train illuminant estimators on each row's training set, test them on the real images.
 
     **Arguments:** `real`: the real set (`RealSet`); `profile`: the camera's `SensorProfile` (its
@@ -257,12 +284,12 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
     real scenes for 'other_content'; `progress`: a callable taking one line of text, or a
     `downstream.progress.Progress` (advanced by one per estimator trained:
     `trainings(...)` of them); `workers`: rows of a fold built and trained side by side in
-    threads (None: up to `MAX_WORKERS`, at most the CPU count; the errors do not depend on it).
+    threads (None: up to `MAX_WORKERS`, at most the CPU count; the errors do not depend on it);
+    `labelled`: the number of labelled real files 'real' and the augmented rows train on (None:
+    all the training folds'; the curve of issue 48).
 
     **Returns:** an `ExperimentResult`.
     """
-    from g2r_jax.downstream.estimators import train_estimator
-
     unknown = [r for r in rows if r not in ROWS]
     if unknown:
         raise ValueError(f"unknown rows {unknown}; expected some of {', '.join(ROWS)}")
@@ -272,8 +299,9 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
     linear = cg_images if cg_images and np.asarray(cg_images[0]).dtype == np.float32 else _sets.linear_images(cg_images)
     start = time.perf_counter()
     sets = _Sets(real, profile, linear, n=n, illuminant_model=illuminant_model, other=other,
-                 single_light=single_light, lights=lights)
+                 single_light=single_light, lights=lights, labelled=labelled)
     errors = {(r, e): [] for r in rows for e in estimators}
+    recipes = {(r, e): [] for r in rows if r in AUGMENTED_ROWS for e in estimators}
     fold_sets = folds_of(len(real.images), folds, 0, groups=real.groups)
     workers = max(1, min(len(rows), workers or min(MAX_WORKERS, os.cpu_count() or 1)))
     for seed in seeds:
@@ -283,10 +311,10 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
             sets.prepare(rows, train, fold, seed)
 
             def row_errors(row):
-                images, lights = sets.build(row, train, fold, seed)
+                built = sets.build(row, train, fold, seed)
                 out = {}
                 for estimator in estimators:
-                    predict = train_estimator(estimator, images, lights, seed=1000 * seed + fold)
+                    predict = _trained(estimator, built, 1000 * seed + fold, recipes.get((row, estimator)))
                     out[estimator] = angular_error_degrees(predict(real.images[test]), real.illuminants[test])
                     advance(progress, 1, f"colour check: seed {seed}, fold {fold + 1}, {row}, {estimator}")
                 return out
@@ -299,4 +327,18 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
         for key, parts in per_fold.items():
             errors[key].append(np.concatenate(parts))
     return ExperimentResult(camera=real.name, rows=tuple(rows), estimators=tuple(estimators), seeds=tuple(seeds),
-                            errors=errors, seconds=time.perf_counter() - start, notes=list(sets.notes))
+                            errors=errors, seconds=time.perf_counter() - start, notes=list(sets.notes),
+                            recipes=recipes, labelled=labelled, files=len(real.images))
+
+
+def _trained(estimator: str, built, seed: int, recipes: Optional[list]):
+    """A predictor trained on a row's set: an (images, lights) pair, or an augmented set (its
+    recipe chosen on the training files and appended to `recipes`)."""
+    from g2r_jax.downstream.augmentation import AugmentedSet, train_chosen
+    from g2r_jax.downstream.estimators import train_estimator
+
+    if not isinstance(built, AugmentedSet):
+        return train_estimator(estimator, *built, seed=seed)
+    predict, recipe, _ = train_chosen(estimator, built, seed=seed)
+    recipes.append(str(recipe))
+    return predict

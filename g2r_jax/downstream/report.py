@@ -103,7 +103,28 @@ def sentence(result: ExperimentResult, estimator: str, content_rows=None) -> str
             top = measured[0]
             parts.append(f"the CG content differs most from the real files in {top['description']}: "
                          f"{top['synthetic']:.3g} against {top['real']:.3g} ({top['distance']:+.1f} robust std)")
+    augmented = augmentation_phrase(result, estimator)
+    if augmented:
+        parts.append(augmented)
     return "; ".join(parts) + "."
+
+
+def augmentation_phrase(result: ExperimentResult, estimator: str) -> str:
+    """What adding g2r_jax RAW to the real files is worth with this many of them ('' without the
+    rows 'real' and 'real_plus_fitted'): real alone against real + g2r_jax, within training noise
+    when the seeds overlap, and the recipes the training files chose."""
+    if not {"real", "real_plus_fitted"} <= set(result.rows):
+        return ""
+    alone, added = (result.summary(r, estimator)["mean"] for r in ("real", "real_plus_fitted"))
+    files = (f"{result.labelled} labelled files" if result.labelled else
+             f"your {result.files} files (each test fold's estimator trains on the other folds')"
+             if result.files else "your files")
+    verb = "lowers" if added < alone else "raises" if added > alone else "leaves"
+    noise = " (within training noise)" if seeds_apart(result, "real_plus_fitted", "real", estimator) is False else ""
+    chosen = sorted(set(result.recipes.get(("real_plus_fitted", estimator), [])))
+    recipe = f", recipe chosen on the training files: {', '.join(chosen)}" if chosen else ""
+    return (f"with {files}, adding g2r_jax RAW {verb} its error from {alone:.2f} to {added:.2f} deg "
+            f"({(added - alone) / alone:+.0%}){noise}{recipe}")
 
 
 def content_table(rows) -> str:
