@@ -13,8 +13,13 @@ profiles without measured lights have them).
     python benchmarks/downstream_nus.py [--cameras Canon600D,NikonD40] [--seeds 3] [--n 500]
         [--estimators cnn,moments,histogram] [--rows ...] [--illuminant-model auto] [--lights 25]
         [--jobs 2] [--json out/downstream_nus.json] [--markdown out/downstream_nus.md]
+    python benchmarks/downstream_nus.py --labelled 10,30,100,all --rows real,real_plus_fitted,real_plus_upi,fitted
 
-Prints one table per camera as it finishes, then the summary across cameras.
+Prints one table per camera as it finishes, then the summary across cameras. `--labelled`
+(issue 48, augmentation): each camera once per number of labelled real files that 'real' and the
+augmented rows ('real_plus_fitted', 'real_plus_upi': the recipe chosen on the training files,
+`g2r_jax.downstream.augmentation`) train on, drawn from the training folds; then the curve
+(mean of the cameras per row and number).
 """
 
 from __future__ import annotations
@@ -84,6 +89,8 @@ def main(argv=None) -> int:
     parser.add_argument("--illuminant-model", default="auto")
     parser.add_argument("--lights", type=int, help="fit the lights to this many training files only "
                         "(the number-of-DNGs ablation of Table S6)")
+    parser.add_argument("--labelled", default="", help="the augmentation curve: numbers of labelled real files, "
+                        "e.g. 10,30,100,all (each camera runs once per number)")
     parser.add_argument("--jobs", type=int, default=1, help="cameras run in this many processes at once")
     parser.add_argument("--json", type=Path)
     parser.add_argument("--markdown", type=Path)
@@ -95,15 +102,19 @@ def main(argv=None) -> int:
     rows = args.rows.split(",")
     estimators = tuple(args.estimators.split(","))
     start = time.perf_counter()
-    jobs = [(name, rows, estimators, args.seeds, args.n, args.illuminant_model, args.lights, cameras) for name in cameras]
+    counts = [None if v == "all" else int(v) for v in args.labelled.split(",") if v] or [None]
+    keys = [name if len(counts) == 1 and counts[0] is None else f"{name}@{'all' if c is None else c}"
+            for name in cameras for c in counts]
+    jobs = [(name, rows, estimators, args.seeds, args.n, args.illuminant_model, args.lights, cameras, c)
+            for name in cameras for c in counts]
     if args.jobs > 1:
         import multiprocessing
 
         with multiprocessing.get_context("spawn").Pool(args.jobs) as pool:
             finished = pool.imap(run_camera, jobs)
-            results = dict(zip(cameras, finished))
+            results = dict(zip(keys, finished))
     else:
-        results = {name: run_camera(job) for name, job in zip(cameras, jobs)}
+        results = {key: run_camera(job) for key, job in zip(keys, jobs)}
     lines = []
     for name, result in results.items():
         block = [f"## {name} ({len(result.errors[(rows[0], estimators[0])][0])} real images; {result.seconds:.0f} s)",
@@ -113,8 +124,10 @@ def main(argv=None) -> int:
     print("\n".join(lines), flush=True)
     summary = summary_table(results, rows, estimators)
     total = time.perf_counter() - start
-    lines += ["## All cameras: mean error (degrees), pooled over seeds", "", summary, "",
-              f"Total {total / 60:.1f} min."]
+    lines += ["## All cameras: mean error (degrees), pooled over seeds", "", summary, ""]
+    if args.labelled:
+        lines += ["## Labelled real files: mean of the cameras (degrees)", "", curve_table(results, rows, estimators), ""]
+    lines += [f"Total {total / 60:.1f} min."]
     print("\n".join(lines[-5:]))
     if args.markdown:
         args.markdown.parent.mkdir(parents=True, exist_ok=True)
@@ -135,7 +148,7 @@ def run_camera(job):
     from g2r_jax.runtime import compile_cache
 
     compile_cache.enable(program="g2r_jax-downstream")
-    name, rows, estimators, seeds, n, illuminant_model, lights, cameras = job
+    name, rows, estimators, seeds, n, illuminant_model, lights, cameras, labelled = job
     cg = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))]
     real = real_sets.load_nus(NUS / f"{name}.npz")
     other = None
@@ -144,8 +157,24 @@ def run_camera(job):
         other = (real_sets.load_nus(NUS / f"{partner}.npz"), camera_profile(partner))
     return experiment.illuminant_experiment(
         real, camera_profile(name), cg, rows=rows, estimators=estimators, seeds=tuple(range(seeds)), n=n,
-        illuminant_model=illuminant_model, lights=lights, other=other,
+        illuminant_model=illuminant_model, lights=lights, other=other, labelled=labelled,
         progress=lambda m: print(f"  {m}", file=sys.stderr, flush=True))
+
+
+def curve_table(results, rows, estimators) -> str:
+    """Markdown: per estimator and number of labelled files, each row's error averaged over the
+    cameras, and the augmented row against real alone."""
+    counts = sorted({key.split("@")[1] for key in results if "@" in key}, key=lambda c: (c == "all", int(c) if c != "all" else 0))
+    out = ["| estimator | labelled files | " + " | ".join(rows) + " | real + g2r_jax vs real |",
+           "|---|---|" + "---|" * (len(rows) + 1)]
+    for e in estimators:
+        for count in counts:
+            parts = [r for key, r in results.items() if key.endswith(f"@{count}")]
+            means = {row: float(np.mean([r.summary(row, e)["mean"] for r in parts])) for row in rows}
+            change = (f"{means['real_plus_fitted'] / means['real'] - 1:+.0%}"
+                      if {"real", "real_plus_fitted"} <= set(rows) else "")
+            out.append(f"| {e} | {count} | " + " | ".join(f"{means[row]:.2f}" for row in rows) + f" | {change} |")
+    return "\n".join(out)
 
 
 def summary_table(results, rows, estimators) -> str:

@@ -86,3 +86,41 @@ def test_cnn_recipes_train_and_fine_tuning_starts_from_the_pretrained_network(wo
                           config=small, sampling=np.r_[np.zeros(12), np.ones(300)],
                           validation_from=np.r_[np.ones(12, bool), np.zeros(300, bool)])
     assert np.isfinite(mixed.validation_error)
+
+
+def test_experiment_rows_see_the_labelled_files_of_the_training_folds(monkeypatch):
+    """'real' and 'real_plus_fitted' train on the same `labelled` files of the training folds (never
+    the test fold), the recipes are kept per fold, and the report's sentence says what adding
+    g2r_jax RAW is worth."""
+    from test_downstream_content_rows import _cg, _fake_sets, _real_set
+
+    from g2r_jax.downstream import experiment, report
+    from g2r_jax.measure import folds_of
+
+    real, profile = _real_set(count=18)
+    index = {image.tobytes(): i for i, image in enumerate(real.images)}
+    seen = {"real": [], "real_plus_fitted": []}
+
+    def alone(name, x, y, seed=0, weights=None):
+        seen["real"].append({index[i.tobytes()] for i in np.asarray(x)})
+        return lambda test: np.tile(np.asarray(y).mean(0), (len(test), 1))
+
+    def chosen(estimator, data, seed=0, recipes=None):
+        seen["real_plus_fitted"].append({index[i.tobytes()] for i in np.asarray(data.real[0])})
+        assert len(data.synthetic[0]) == 50
+        return (lambda test: np.tile(np.asarray(data.real[1]).mean(0) * 1.01, (len(test), 1))), aug.REAL, {}
+
+    monkeypatch.setattr(est, "train_estimator", alone)
+    monkeypatch.setattr(aug, "train_chosen", chosen)
+    _fake_sets(monkeypatch, [])
+    result = experiment.illuminant_experiment(real, profile, _cg(), rows=("real", "real_plus_fitted"),
+                                              estimators=("moments",), seeds=(0, 1), n=50, folds=3,
+                                              illuminant_model="prior", labelled=6)
+    tests = folds_of(len(real.images), 3, 0, groups=real.groups)
+    assert seen["real"] == seen["real_plus_fitted"] and len(seen["real"]) == 6
+    for k, files in enumerate(seen["real"]):
+        assert len(files) == 6 and not files & set(tests[k % 3].tolist())
+    assert result.recipes[("real_plus_fitted", "moments")] == ["real"] * 6 and result.labelled == 6
+    phrase = report.augmentation_phrase(result, "moments")
+    assert phrase.startswith("with 6 labelled files, adding g2r_jax RAW") and "recipe chosen" in phrase
+    assert result.to_dict()["recipes"]["real_plus_fitted/moments"] == ["real"] * 6
