@@ -19,10 +19,11 @@ EXAMPLES = """  g2r-convert renders/ --profile gopro_hero6 -o dngs/
   g2r-convert --example -o example_dng/
   g2r-convert renders/ --profile my_camera.json -o dngs/ --pairs   # + x.clean.dng, x.scene.png per x.dng
 """
-# LibRaw (rawpy, many viewers) applies one colour matrix whatever the light; Adobe's SDK and
-# darktable interpolate the matrices by the white's temperature as the DNG specification says.
-RENDERER_NOTE = ("to view: Adobe's renderers (Lightroom, Camera Raw, DNG SDK) and darktable read the colour "
-                 "tags fully; LibRaw (rawpy) uses one matrix, so warm or night scenes show casts not in the data")
+# Measured (docs/pages/guide/renderers.md): Adobe's SDK interpolates the matrices by the white's
+# temperature as the DNG specification says; LibRaw, RawTherapee 5.9 and darktable 4.2.1 use one.
+RENDERER_NOTE = ("to view: Adobe's renderers (Lightroom, Camera Raw, DNG SDK) read the colour tags as written; "
+                 "LibRaw (rawpy), RawTherapee and darktable use one matrix, so warm or night scenes show casts "
+                 "not in the data")
 
 
 class _ListProfiles(argparse.Action):
