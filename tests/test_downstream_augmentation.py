@@ -124,3 +124,49 @@ def test_experiment_rows_see_the_labelled_files_of_the_training_folds(monkeypatc
     phrase = report.augmentation_phrase(result, "moments")
     assert phrase.startswith("with 6 labelled files, adding g2r_jax RAW") and "recipe chosen" in phrase
     assert result.to_dict()["recipes"]["real_plus_fitted/moments"] == ["real"] * 6
+
+
+def test_the_labelled_curve_has_a_point_per_count_and_draws_it(monkeypatch, tmp_path):
+    from test_downstream_content_rows import _cg, _fake_sets, _real_set
+
+    from g2r_jax.downstream import experiment, labelled_curve
+
+    real, profile = _real_set(count=30)
+    sizes = []
+
+    def alone(name, x, y, seed=0, weights=None):
+        sizes.append(len(x))
+        return lambda test: np.tile(np.asarray(y).mean(0), (len(test), 1))
+
+    def chosen(estimator, data, seed=0, recipes=None):
+        return (lambda test: np.tile(np.asarray(data.synthetic[1]).mean(0), (len(test), 1))), aug.Recipe("mixed", 0.5), {}
+
+    monkeypatch.setattr(est, "train_estimator", alone)
+    monkeypatch.setattr(aug, "train_chosen", chosen)
+    _fake_sets(monkeypatch, [])
+    common = dict(estimators=("moments",), seeds=(0,), n=50, folds=3)
+    full = experiment.illuminant_experiment(real, profile, _cg(), rows=("fitted", "real", "real_plus_fitted"),
+                                            illuminant_model="prior", **common)
+    sizes.clear()
+    curve = labelled_curve.run_curve(real, profile, _cg(), full, counts=(5, 10, 25, 400), **common)
+    assert list(curve.points["moments"]) == ["5", "10", "all"]         # 25 and 400: not below the 20 training files
+    assert sorted(set(sizes)) == [5, 10]
+    for point in curve.points["moments"].values():
+        assert set(point) == {"real", "real_plus_fitted"} and point["real"]["seed_min"] <= point["real"]["mean"]
+    assert curve.alone["moments"] == full.summary("fitted", "moments")["mean"]
+    table = curve.table()
+    assert "| moments | 5 |" in table and "| moments | all |" in table
+    assert curve.figure(tmp_path / "augmentation.png") and (tmp_path / "augmentation.png").stat().st_size > 1000
+    with pytest.raises(ValueError, match="real_plus_fitted"):
+        labelled_curve.run_curve(real, profile, _cg(), dataclasses.replace(full, rows=("fitted", "real")),
+                                 counts=(5,), **common)
+
+
+def test_a_bad_curve_option_is_refused_before_any_work(tmp_path, capsys):
+    from g2r_jax.cli import downstream
+
+    folder = tmp_path / "dngs"
+    folder.mkdir()
+    status = downstream.main(["--measured", str(folder), "--cg", str(folder), "--report", str(tmp_path / "r"),
+                              "--curve", "10,ten"])
+    assert status == 2 and "--curve 10,ten" in capsys.readouterr().err

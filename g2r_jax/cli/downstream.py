@@ -68,6 +68,10 @@ def _parser() -> argparse.ArgumentParser:
                         help="add a row: UPI on the same content-adapted CG images as the g2r_jax row (one more "
                              "training set per fold and seed, trained with every estimator): g2r_jax's lead over "
                              "UPI on equal content")
+    parser.add_argument("--curve", default="", metavar="COUNTS",
+                        help="comma-separated numbers of labelled real files, e.g. 10,30,100: also train the "
+                             "estimators on only that many of the training files, alone and with g2r_jax RAW, "
+                             "and draw what adding g2r_jax RAW is worth by the number of files (augmentation.png)")
     parser.add_argument("--max-megapixels", type=float, default=100.0, metavar="MPX",
                         help="refuse CG images larger than this (0: no limit)")
     parser.add_argument("--dry-run", action="store_true",
@@ -99,6 +103,15 @@ def _inputs_problem(args) -> str | None:
             if problem:
                 return problem
     return _path_problem("--burst", args.burst, folder=True) if args.burst is not None else None
+
+
+def _curve_problem(curve: str) -> str | None:
+    if not curve:
+        return None
+    parts = curve.split(",")
+    if not all(p.strip().isdigit() and 0 < int(p) <= 100_000 for p in parts):
+        return f"--curve {curve}: expected comma-separated numbers of files from 1 to 100000, e.g. 10,30,100"
+    return None
 
 
 def _path_problem(option: str, item: str, folder: bool = False) -> str | None:
@@ -157,7 +170,7 @@ def check_arguments(args) -> str | None:
     when there is none)."""
     from g2r_jax.profile.shipped import UnknownProfile, profile_path
 
-    problem = _inputs_problem(args) or _range_problem(args)
+    problem = _inputs_problem(args) or _range_problem(args) or _curve_problem(args.curve)
     if problem:
         return problem
     tasks = args.tasks.split(",")
@@ -192,6 +205,7 @@ def _run(args) -> int:
                            rows=default_rows(args.profile is not None, content_rows=True) if args.content_rows else None,
                            denoiser_steps=args.denoiser_steps, tasks=tuple(args.tasks.split(",")),
                            dry_run=args.dry_run, progress=say, on_problem=bad,
+                           curve=tuple(int(c) for c in args.curve.split(",")) if args.curve else (),
                            max_pixels=int(args.max_megapixels * 1e6) if args.max_megapixels > 0 else None)
     finally:
         if say is not None:

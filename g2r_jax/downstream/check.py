@@ -99,6 +99,14 @@ def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds,
     return result, document, sentences, markdown
 
 
+def _curve_check(inputs: Inputs, profile, result, *, counts, estimators, seeds, n, folds, say, workers=None):
+    """The labelled-files curve of the colour check (`labelled_curve.run_curve`)."""
+    from g2r_jax.downstream.labelled_curve import run_curve
+
+    return run_curve(inputs.real, profile, inputs.cg, result, counts=counts, estimators=estimators, seeds=seeds, n=n,
+                     folds=folds, workers=workers, progress=say)
+
+
 def _isp_rows(profile_given: bool) -> tuple:
     from g2r_jax.downstream import isp
 
@@ -123,7 +131,7 @@ def _burst_contents(inputs: Inputs) -> tuple:
 
 
 def _plan(progress, inputs: Inputs, *, tasks, rows, estimators, seeds: int, folds: int, choose: bool,
-          profile_given: bool) -> None:
+          profile_given: bool, curve=()) -> None:
     """Tell `progress` (a `downstream.progress.Progress`) every training the check will run, so
     that its time left covers the whole check."""
     from g2r_jax.downstream import denoising, isp
@@ -131,7 +139,10 @@ def _plan(progress, inputs: Inputs, *, tasks, rows, estimators, seeds: int, fold
 
     units = 0
     if inputs.real is not None and "colour" in tasks:
+        from g2r_jax.downstream.labelled_curve import trainings as curve_trainings
+
         units += experiment.trainings(rows, estimators, range(seeds), folds)
+        units += curve_trainings(curve, len(inputs.real.images) * (folds - 1) // folds, estimators, range(seeds), folds)
     if inputs.real is not None and "isp" in tasks:
         units += isp.trainings(_isp_rows(profile_given), range(seeds), folds)
     if inputs.burst is not None:
@@ -166,7 +177,7 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
               estimators: Sequence[str] = DEFAULT_ESTIMATORS, rows: Optional[Sequence[str]] = None, seeds: int = 2,
               n: int = 600, folds: int = 3, denoiser_steps: Optional[int] = None, max_pixels: Optional[int] = DEFAULT_MAX_PIXELS,
               tasks: Sequence[str] = DEFAULT_TASKS, dry_run: bool = False, progress: Optional[Callable[[str], None]] = None, workers: Optional[int] = None,
-              on_problem: Optional[Callable[[str, str], None]] = None) -> report.Report:
+              on_problem: Optional[Callable[[str, str], None]] = None, curve: Sequence[int] = ()) -> report.Report:
     """Run the downstream check (see the module docstring).
 
     **Arguments:** `measured`: folders or files of the camera's real DNGs (the colour check;
@@ -182,7 +193,9 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     the profile, train nothing; `progress`: a callable
     taking one line of text, or a `downstream.progress.Progress` (a bar of the check's trainings
     with the time left); `workers`: rows of the colour check trained side by side
-    (`experiment.illuminant_experiment`); `on_problem(path, reason)`: called as each input is left out.
+    (`experiment.illuminant_experiment`); `on_problem(path, reason)`: called as each input is left out;
+    `curve`: numbers of labelled real files for the augmentation curve (`downstream.labelled_curve`:
+    real alone and real + g2r_jax at each; needs the rows 'real' and 'real_plus_fitted').
 
     **Returns:** a `report.Report` (its `status` is the command's exit status). **Raises:**
     `DngError` naming the folder when a check cannot run on its inputs, ValueError for options
@@ -217,8 +230,8 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     body = []
     rows = default_rows(profile is not None) if rows is None else tuple(rows)
     _plan(progress, inputs, tasks=tasks, rows=rows, estimators=estimators, seeds=seeds, folds=folds,
-          choose=denoiser_steps is None, profile_given=profile is not None)
-    isp_result = None
+          choose=denoiser_steps is None, profile_given=profile is not None, curve=curve)
+    isp_result = curve_result = None
     if inputs.real is not None and "colour" in tasks:
         result, part, said, lines = _colour_check(inputs, sensor, rows=rows, estimators=tuple(estimators),
                                                   seeds=tuple(range(seeds)), n=n, folds=folds, say=say,
@@ -226,6 +239,12 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
         document.update(part)
         sentences += said
         body += lines
+        if curve:
+            curve_result = _curve_check(inputs, sensor, result, counts=curve, estimators=tuple(estimators),
+                                        seeds=tuple(range(seeds)), n=n, folds=folds, say=say, workers=workers)
+            document["augmentation_curve"] = curve_result.to_dict()
+            body += ["## Labelled real files: what adding g2r_jax RAW is worth", "", curve_result.table(), "",
+                     "The curve: `augmentation.png`.", ""]
     if inputs.real is not None and "isp" in tasks:
         isp_result, part, said, lines = _isp_check(inputs, sensor, profile_given=profile is not None,
                                                    seeds=tuple(range(seeds)), folds=folds, say=say)
@@ -242,7 +261,7 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     markdown += [*sentences, "", *body]
     return report.Report(camera=document["camera"], sentences=sentences, document=document,
                          markdown="\n".join(markdown), result=result, denoising=denoised, isp=isp_result,
-                         problems=inputs.problems, notes=inputs.notes)
+                         curve=curve_result, problems=inputs.problems, notes=inputs.notes)
 
 
 def _dry_run_sentence(inputs: Inputs) -> str:

@@ -192,6 +192,7 @@ class Report:
     result: ExperimentResult | None = None
     denoising: object = None
     isp: object = None
+    curve: object = None     # `labelled_curve.LabelledCurve` with `run_check(curve=...)`
     problems: list = dataclasses.field(default_factory=list)
     notes: list = dataclasses.field(default_factory=list)
 
@@ -217,8 +218,8 @@ def _finite(value):
 
 
 def write_report(report: Report, folder) -> list[Path]:
-    """Write report.json, report.md and (with matplotlib) errors.png of a colour check and isp.png
-    of an ISP task into
+    """Write report.json, report.md and (with matplotlib) errors.png of a colour check, isp.png
+    of an ISP task and augmentation.png of a labelled-files curve into
     `folder` (created if missing), each atomically.
 
     **Arguments:** `report`: a `Report`; `folder`: a path. **Returns:** the paths written.
@@ -234,5 +235,7 @@ def write_report(report: Report, folder) -> list[Path]:
         written.append(folder / "errors.png")
     if report.isp is not None and report.isp.figure(folder / "isp.png"):
         written.append(folder / "isp.png")
+    if report.curve is not None and report.curve.figure(folder / "augmentation.png"):
+        written.append(folder / "augmentation.png")
     return written
 
