@@ -15,3 +15,10 @@ def shared_data() -> Path:
     if not SHARED_DATA.exists():
         pytest.skip("../shared/data is not present (measured data for development only)")
     return SHARED_DATA
+
+
+@pytest.fixture(autouse=True)
+def _own_downstream_cache(tmp_path, monkeypatch):
+    """Each test gets an empty store of finished downstream trainings (`downstream.cache`): no test
+    reuses another's (or a user's) results."""
+    monkeypatch.setenv("G2R_JAX_DOWNSTREAM_CACHE", str(tmp_path / "downstream-cache"))

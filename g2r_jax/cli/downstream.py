@@ -72,6 +72,10 @@ def _parser() -> argparse.ArgumentParser:
                         help="comma-separated numbers of labelled real files, e.g. 10,30,100: also train the "
                              "estimators on only that many of the training files, alone and with g2r_jax RAW, "
                              "and draw what adding g2r_jax RAW is worth by the number of files (augmentation.png)")
+    parser.add_argument("--no-cache", action="store_true",
+                        help="train everything again: do not read or write the store of finished trainings (by "
+                             "default a second run on the same inputs, or one adding rows, reuses them; kept in "
+                             "~/.cache/g2r_jax/downstream or $G2R_JAX_DOWNSTREAM_CACHE, at most 512 MB)")
     parser.add_argument("--max-megapixels", type=float, default=100.0, metavar="MPX",
                         help="refuse CG images larger than this (0: no limit)")
     parser.add_argument("--dry-run", action="store_true",
@@ -189,6 +193,7 @@ def check_arguments(args) -> str | None:
 
 def _run(args) -> int:
     from g2r_jax.downstream import default_rows, run_check, write_report
+    from g2r_jax.downstream.cache import DownstreamCache, default_location
     from g2r_jax.downstream.progress import Progress
 
     def line(message):
@@ -206,6 +211,7 @@ def _run(args) -> int:
                            denoiser_steps=args.denoiser_steps, tasks=tuple(args.tasks.split(",")),
                            dry_run=args.dry_run, progress=say, on_problem=bad,
                            curve=tuple(int(c) for c in args.curve.split(",")) if args.curve else (),
+                           cache=DownstreamCache(None if args.no_cache else default_location()),
                            max_pixels=int(args.max_megapixels * 1e6) if args.max_megapixels > 0 else None)
     finally:
         if say is not None:

@@ -78,13 +78,15 @@ def _product_views(views, real, profile):
     return content_rows.adapted_views(model, views)
 
 
-def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds, say, workers=None) -> tuple:
+def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds, say, workers=None,
+                  cache=None) -> tuple:
     """(ExperimentResult, JSON part, sentences, markdown lines) of the colour check."""
     from g2r_jax.downstream.training_sets import cg_views, g2r_set, real_to_linear_srgb
 
     real = inputs.real
     result = experiment.illuminant_experiment(real, profile, inputs.cg, rows=rows, estimators=estimators,
-                                              seeds=seeds, n=n, folds=folds, progress=say, workers=workers)
+                                              seeds=seeds, n=n, folds=folds, progress=say, workers=workers,
+                                              cache=cache)
     fitted = experiment.fitted_illuminants(profile, real.illuminants)
     synthetic = g2r_set(_product_views(cg_views(inputs.cg, min(n, 300), 0), real, profile), fitted, 0)
     round_trip = g2r_set(real_to_linear_srgb(real.images, real.illuminants, profile),
@@ -99,12 +101,13 @@ def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds,
     return result, document, sentences, markdown
 
 
-def _curve_check(inputs: Inputs, profile, result, *, counts, estimators, seeds, n, folds, say, workers=None):
+def _curve_check(inputs: Inputs, profile, result, *, counts, estimators, seeds, n, folds, say, workers=None,
+                 cache=None):
     """The labelled-files curve of the colour check (`labelled_curve.run_curve`)."""
     from g2r_jax.downstream.labelled_curve import run_curve
 
     return run_curve(inputs.real, profile, inputs.cg, result, counts=counts, estimators=estimators, seeds=seeds, n=n,
-                     folds=folds, workers=workers, progress=say)
+                     folds=folds, workers=workers, progress=say, cache=cache)
 
 
 def _isp_rows(profile_given: bool) -> tuple:
@@ -177,7 +180,8 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
               estimators: Sequence[str] = DEFAULT_ESTIMATORS, rows: Optional[Sequence[str]] = None, seeds: int = 2,
               n: int = 600, folds: int = 3, denoiser_steps: Optional[int] = None, max_pixels: Optional[int] = DEFAULT_MAX_PIXELS,
               tasks: Sequence[str] = DEFAULT_TASKS, dry_run: bool = False, progress: Optional[Callable[[str], None]] = None, workers: Optional[int] = None,
-              on_problem: Optional[Callable[[str, str], None]] = None, curve: Sequence[int] = ()) -> report.Report:
+              on_problem: Optional[Callable[[str, str], None]] = None, curve: Sequence[int] = (),
+              cache=None) -> report.Report:
     """Run the downstream check (see the module docstring).
 
     **Arguments:** `measured`: folders or files of the camera's real DNGs (the colour check;
@@ -195,7 +199,9 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     with the time left); `workers`: rows of the colour check trained side by side
     (`experiment.illuminant_experiment`); `on_problem(path, reason)`: called as each input is left out;
     `curve`: numbers of labelled real files for the augmentation curve (`downstream.labelled_curve`:
-    real alone and real + g2r_jax at each; needs the rows 'real' and 'real_plus_fitted').
+    real alone and real + g2r_jax at each; needs the rows 'real' and 'real_plus_fitted'); `cache`:
+    a `downstream.cache.DownstreamCache` of finished trainings of the colour check (None: off; the
+    command's default is the user's cache folder, `--no-cache` off).
 
     **Returns:** a `report.Report` (its `status` is the command's exit status). **Raises:**
     `DngError` naming the folder when a check cannot run on its inputs, ValueError for options
@@ -235,13 +241,14 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     if inputs.real is not None and "colour" in tasks:
         result, part, said, lines = _colour_check(inputs, sensor, rows=rows, estimators=tuple(estimators),
                                                   seeds=tuple(range(seeds)), n=n, folds=folds, say=say,
-                                                  workers=workers)
+                                                  workers=workers, cache=cache)
         document.update(part)
         sentences += said
         body += lines
         if curve:
             curve_result = _curve_check(inputs, sensor, result, counts=curve, estimators=tuple(estimators),
-                                        seeds=tuple(range(seeds)), n=n, folds=folds, say=say, workers=workers)
+                                        seeds=tuple(range(seeds)), n=n, folds=folds, say=say, workers=workers,
+                                        cache=cache)
             document["augmentation_curve"] = curve_result.to_dict()
             body += ["## Labelled real files: what adding g2r_jax RAW is worth", "", curve_result.table(), "",
                      "The curve: `augmentation.png`.", ""]
@@ -258,6 +265,9 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
         document["denoising"] = part
         sentences.append(said)
         body += lines
+    if cache is not None and cache.enabled and result is not None:
+        document["cache"] = {"folder": str(cache.folder), "reused": cache.hits, "trained": cache.misses}
+        body += [f"- {cache.summary()}", *(f"- {note}" for note in cache.notes), ""]
     markdown += [*sentences, "", *body]
     return report.Report(camera=document["camera"], sentences=sentences, document=document,
                          markdown="\n".join(markdown), result=result, denoising=denoised, isp=isp_result,

@@ -39,6 +39,7 @@ real_profile_light - real; the content model's gain is fitted_no_content - fitte
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -268,7 +269,8 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
                           seeds=(0, 1, 2), n: int = 1000, folds: int = 3, illuminant_model: str = "auto",
                           single_light: str = "auto", lights: Optional[int] = None, other: Optional[tuple] = None,
                           progress: Optional[Callable[[str], None]] = None,
-                          workers: Optional[int] = None, labelled: Optional[int] = None) -> ExperimentResult:
+                          workers: Optional[int] = None, labelled: Optional[int] = None,
+                          cache=None) -> ExperimentResult:
     """Train illuminant estimators on each row's training set, test them on the real images.
 
     **Arguments:** `real`: the real set (`RealSet`); `profile`: the camera's `SensorProfile` (its
@@ -286,7 +288,8 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
     `trainings(...)` of them); `workers`: rows of a fold built and trained side by side in
     threads (None: up to `MAX_WORKERS`, at most the CPU count; the errors do not depend on it);
     `labelled`: the number of labelled real files 'real' and the augmented rows train on (None:
-    all the training folds'; the curve of issue 48).
+    all the training folds'; the curve of issue 48); `cache`: a `downstream.cache.DownstreamCache`
+    whose stored estimates replace the trainings it holds (None: every estimator is trained).
 
     **Returns:** an `ExperimentResult`.
     """
@@ -304,6 +307,8 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
     recipes = {(r, e): [] for r in rows if r in AUGMENTED_ROWS for e in estimators}
     fold_sets = folds_of(len(real.images), folds, 0, groups=real.groups)
     workers = max(1, min(len(rows), workers or min(MAX_WORKERS, os.cpu_count() or 1)))
+    unit_key = _unit_keys(real, profile, linear, n=n, folds=folds, illuminant_model=illuminant_model,
+                          single_light=single_light, lights=lights, labelled=labelled, other=other)
     for seed in seeds:
         per_fold = {key: [] for key in errors}
         for fold, test in enumerate(fold_sets):
@@ -311,11 +316,22 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
             sets.prepare(rows, train, fold, seed)
 
             def row_errors(row):
-                built = sets.build(row, train, fold, seed)
+                keys = {e: unit_key(row, e, test, seed) for e in estimators}
+                stored = {e: cache.get(keys[e]) for e in estimators} if cache is not None else {}
+                built = None if stored and all(v is not None for v in stored.values()) else sets.build(row, train, fold, seed)
                 out = {}
                 for estimator in estimators:
-                    predict = _trained(estimator, built, 1000 * seed + fold, recipes.get((row, estimator)))
-                    out[estimator] = angular_error_degrees(predict(real.images[test]), real.illuminants[test])
+                    if stored.get(estimator) is not None:
+                        estimates = stored[estimator]["estimates"]
+                        if (row, estimator) in recipes:
+                            recipes[(row, estimator)].append(str(stored[estimator]["recipe"]))
+                    else:
+                        predict = _trained(estimator, built, 1000 * seed + fold, recipes.get((row, estimator)))
+                        estimates = predict(real.images[test])
+                        if cache is not None:
+                            chosen = recipes[(row, estimator)][-1] if (row, estimator) in recipes else ""
+                            cache.put(keys[estimator], {"estimates": estimates, "recipe": np.asarray(chosen)})
+                    out[estimator] = angular_error_degrees(estimates, real.illuminants[test])
                     advance(progress, 1, f"colour check: seed {seed}, fold {fold + 1}, {row}, {estimator}")
                 return out
 
@@ -329,6 +345,20 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
     return ExperimentResult(camera=real.name, rows=tuple(rows), estimators=tuple(estimators), seeds=tuple(seeds),
                             errors=errors, seconds=time.perf_counter() - start, notes=list(sets.notes),
                             recipes=recipes, labelled=labelled, files=len(real.images))
+
+
+def _unit_keys(real: RealSet, profile, cg_linear, **options):
+    """key(row, estimator, test, seed) of one training's stored estimates (`downstream.cache`):
+    the code, the real images and labels, the CG images, the profile and the options."""
+    from g2r_jax.downstream.cache import code_digest, key_of
+    from g2r_jax.profile.schema import profile_to_dict
+
+    profile_json = lambda p: json.dumps(profile_to_dict(p), sort_keys=True, default=str)
+    other = options.pop("other")
+    base = key_of(code_digest(), "colour check", real.images, real.illuminants, list(cg_linear), profile_json(profile),
+                  sorted(options.items()),
+                  None if other is None else (other[0].images, other[0].illuminants, profile_json(other[1])))
+    return lambda row, estimator, test, seed: key_of(base, row, estimator, np.asarray(test), seed)
 
 
 def _trained(estimator: str, built, seed: int, recipes: Optional[list]):

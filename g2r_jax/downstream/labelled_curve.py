@@ -55,9 +55,10 @@ def _point(result: experiment.ExperimentResult, estimator: str) -> dict:
 
 def run_curve(real, profile, cg_images, full: experiment.ExperimentResult, *, counts: Sequence[int],
               estimators: Sequence[str], seeds, n: int, folds: int, workers: Optional[int] = None,
-              progress: Optional[Callable[[str], None]] = None) -> LabelledCurve:
+              progress: Optional[Callable[[str], None]] = None, cache=None) -> LabelledCurve:
     """The curve for `counts` labelled files (those below the training folds' size; the full
-    check `full`, which must hold 'real' and 'real_plus_fitted', is the point 'all').
+    check `full`, which must hold 'real' and 'real_plus_fitted', is the point 'all'); `cache` as
+    the experiment's.
 
     **Returns:** a `LabelledCurve`. **Raises:** ValueError when `full` lacks the rows."""
     if not set(ROWS) <= set(full.rows):
@@ -67,7 +68,7 @@ def run_curve(real, profile, cg_images, full: experiment.ExperimentResult, *, co
     for count in sorted(c for c in set(counts) if 0 < c < training):
         result = experiment.illuminant_experiment(real, profile, cg_images, rows=ROWS, estimators=estimators,
                                                   seeds=seeds, n=n, folds=folds, progress=progress, workers=workers,
-                                                  labelled=count)
+                                                  labelled=count, cache=cache)
         for e in estimators:
             points[e][str(count)] = _point(result, e)
     for e in estimators:

@@ -1,0 +1,63 @@
+"""The store of finished downstream trainings (issue 52): a second run on the same inputs trains
+nothing and reports the same figures; a run that adds a row trains only that row; `--no-cache`
+trains everything; a damaged entry is retrained; the store keeps to its cap."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from downstream_helpers import write_camera_folders
+
+from g2r_jax.cli import downstream
+from g2r_jax.downstream.cache import DownstreamCache, key_of
+
+
+@pytest.fixture(scope="module")
+def folders(tmp_path_factory):
+    return write_camera_folders(tmp_path_factory.mktemp("cache"), 12, 3)
+
+
+def _check(folders, report, *extra):
+    dngs, cg = folders
+    status = downstream.main([str(a) for a in ("--measured", dngs, "--cg", cg, "--report", report, "--profile",
+                                                "NikonD40", "--estimators", "moments", "--seeds", 1, "--n", 50,
+                                                "--folds", 2, "--quiet", *extra)])
+    assert status == 0
+    return json.loads((report / "report.json").read_text())
+
+
+def test_a_second_run_reuses_every_training_and_reports_the_same(folders, tmp_path):
+    first = _check(folders, tmp_path / "a")
+    again = _check(folders, tmp_path / "b")
+    assert first["cache"]["reused"] == 0 and first["cache"]["trained"] > 0
+    assert again["cache"] == {**first["cache"], "reused": first["cache"]["trained"], "trained": 0}
+    for key, value in first["summary"].items():
+        assert again["summary"][key]["mean"] == pytest.approx(value["mean"], abs=1e-12), key
+    assert "reused" in (tmp_path / "b" / "report.md").read_text()
+    off = _check(folders, tmp_path / "c", "--no-cache")
+    assert "cache" not in off
+
+
+def test_a_run_with_another_row_trains_only_that_row(folders, tmp_path):
+    first = _check(folders, tmp_path / "a")
+    more = _check(folders, tmp_path / "b", "--content-rows")
+    folds = 2
+    assert more["cache"]["reused"] == first["cache"]["trained"]
+    assert more["cache"]["trained"] == folds               # upi_content x moments x one seed
+
+
+def test_damaged_entries_are_retrained_and_the_store_keeps_its_cap(tmp_path):
+    cache = DownstreamCache(tmp_path / "store", cap_bytes=3000)
+    key = key_of("unit", np.arange(3))
+    cache.put(key, {"estimates": np.ones((4, 3))})
+    assert np.array_equal(cache.get(key)["estimates"], np.ones((4, 3))) and cache.hits == 1
+    (tmp_path / "store" / f"{key}.npz").write_bytes(b"not an npz")
+    assert cache.get(key) is None and not (tmp_path / "store" / f"{key}.npz").exists()
+    for i in range(10):
+        cache.put(key_of("unit", i), {"estimates": np.zeros((20, 3))})
+    assert sum(p.stat().st_size for p in (tmp_path / "store").glob("*.npz")) <= 3000
+    assert cache.get(key_of("unit", 9)) is not None            # the newest kept, the oldest gone
+    assert cache.get(key_of("unit", 0)) is None
+    assert key_of("a", np.zeros(3)) != key_of("a", np.zeros(3, np.float32))
