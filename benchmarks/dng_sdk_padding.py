@@ -20,7 +20,8 @@ headers are in dngpy's source distribution (`pip download dngpy==0.1.3 --no-bina
         -I$S/extern/dng_sdk/source -I$S/extern/xmp/toolkit/public/include \
         -I$S/extern/libjxl/libjxl/lib/include -Istub benchmarks/dng_sdk_render.cpp -o sdk_render \
         -L$L -l:libdng.so.1 -Wl,-rpath,$L -lpthread
-(the jxl headers also need version.h and jxl_threads_export.h from the same tree, copied the same way).
+(the jxl headers also need jxl_threads_export.h from the same tree, copied the same way; jxl's own
+version.h is on the include path already: `find ... version.h | head -1` would pick brotli's).
 """
 
 from __future__ import annotations
