@@ -5,6 +5,11 @@ a fold trained one at a time (`workers=1`, as before) and side by side (`workers
 process after a warm-up run (so compilation is not counted), with each run's product row.
 
     python benchmarks/check_speed.py [--camera Canon600D] [--repeats 1]
+    python benchmarks/check_speed.py --second-run [--camera Canon600D]
+
+`--second-run` (issue 52): the check with the store of finished trainings (`downstream.cache`, an
+empty folder), run twice on the same inputs: the first run fills it, the second reuses it; both
+wall times and product rows printed side by side.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--camera", default="Canon600D")
     parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument("--second-run", action="store_true", help="first and second run with the cache")
     args = parser.parse_args(argv)
     compile_cache.enable()
     cg = ROOT.parent / "shared" / "data" / "cg" / "carla"
@@ -42,12 +48,29 @@ def main(argv=None) -> int:
             summary = report.result.summary("fitted", "cnn")
             return time.perf_counter() - start, summary["mean"], summary["seed_means"]
 
+        if args.second_run:
+            return _second_run(Path(work) / "dngs", cg, Path(work) / "cache")
         check(None)   # warm-up: compilation, caches on disk
         for _ in range(args.repeats):
             for workers in (1, None):
                 seconds, mean, seeds = check(workers)
                 print(f"workers={workers}: {seconds:.1f} s; product row (cnn) {mean:.2f} deg, seeds "
                       + " ".join(f"{s:.2f}" for s in seeds))
+    return 0
+
+
+def _second_run(dngs: Path, cg: Path, store: Path) -> int:
+    """The check twice with one store: wall time and product row of each run."""
+    from g2r_jax.downstream import default_rows, run_check
+    from g2r_jax.downstream.cache import DownstreamCache
+
+    for label in ("first run (empty store)", "second run (same inputs)"):
+        cache = DownstreamCache(store)
+        start = time.perf_counter()
+        report = run_check([dngs], [cg], rows=default_rows(False, content_rows=True), cache=cache)
+        seconds = time.perf_counter() - start
+        summary = report.result.summary("fitted", "cnn")
+        print(f"{label}: {seconds:.1f} s; {cache.summary()}; product row (cnn) {summary['mean']:.2f} deg")
     return 0
 
 
