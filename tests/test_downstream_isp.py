@@ -243,3 +243,18 @@ def test_masked_pixels_are_out_of_the_loss(profile):
     np.testing.assert_allclose(isp_net.predict(a, packed), isp_net.predict(b, packed), atol=1e-6)
     c = isp_net.train_many([(packed, other)], [0], config)[0]
     assert not np.allclose(isp_net.predict(a, packed), isp_net.predict(c, packed), atol=1e-4)
+
+
+def test_saturated_tiles_are_written_at_the_white_level(profile):
+    views = np.full((2, 32, 32, 3), 0.2, np.float32)
+    tiles = np.zeros((2, 32, 32), bool)
+    tiles[1, 3:6, 10:12] = True
+    images = np.full((2, 64, 64, 3), 0.3, np.float32)
+    images[1, 6:12, 20:24] = 0.0
+    assert np.array_equal(isp_pairs.missing_tiles(images), tiles)
+    lights = np.array([[0.5, 1, 0.6]] * 2)
+    packed, targets = isp_pairs.g2r_pairs(views, profile, 0, neutrals=lights, saturated=tiles)
+    plain, _ = isp_pairs.g2r_pairs(views, profile, 0, neutrals=lights)
+    assert np.all(packed[1][tiles[1]] == 1.0) and not np.any(plain[1][tiles[1]] == 1.0)
+    assert np.array_equal(packed[1][~tiles[1]], plain[1][~tiles[1]]) and np.array_equal(packed[0], plain[0])
+    assert targets[1][7:11, 21:23].min() > 0.99          # developed white inside, as the real pairs' missing pixels

@@ -26,8 +26,10 @@ Rows (`ROWS`; the colour check's names):
 - real: the real training folds' pairs;
 - real_profile_light: control: the real training thumbnails rendered to linear sRGB at their
   measured white (`training_sets.real_to_linear_srgb`) and made RAW again through g2r_jax with
-  the fitted lights, no content model. The profile's share of the gap to real training is
-  real_profile_light - real, the CG content's is fitted - real_profile_light.
+  the fitted lights, no content model; with masks, the tiles the real pairs write saturated
+  (their missing pixels) are saturated here too, so that both rows' inputs hold the same there.
+  The profile's share of the gap to real training is real_profile_light - real, the CG content's
+  is fitted - real_profile_light.
 """
 
 from __future__ import annotations
@@ -276,14 +278,15 @@ class _RowSets:
         self.notes.append(f"{where}: {describe(model)}, fitted to {len(images)} training file(s)' scenes")
         return model
 
-    def _g2r(self, views, profile, salt, model=None, *, as_given: bool = False):
+    def _g2r(self, views, profile, salt, model=None, *, as_given: bool = False, saturated=None):
         """g2r_jax pairs of `views` (through `model` first, when given) with `profile`: as given
         (its content model applied as it says) or without its content model."""
         from g2r_jax.downstream.content_rows import adapted_views
         from g2r_jax.pipeline import without_content
 
         views = views if model is None else adapted_views(model, views)
-        return _pairs.g2r_pairs(views, profile if as_given else without_content(profile), salt, size=self.size)
+        return _pairs.g2r_pairs(views, profile if as_given else without_content(profile), salt, size=self.size,
+                                saturated=saturated)
 
     def build(self, row: str, train: np.ndarray, fold: int, seed: int):
         salt = 1000 * seed + 10 * fold
@@ -317,8 +320,10 @@ class _RowSets:
             if self.masks is None:
                 views, = _repeat_to(self.n, views)
                 return self._g2r(views, fitted, salt + 8)
-            views, masks = _repeat_to(self.n, views, self.masks[train])
-            return (*self._g2r(views, fitted, salt + 8), masks)
+            # the real pairs' missing pixels are saturated tiles: so are these (same input, masked loss)
+            tiles = _pairs.missing_tiles(self.real.images[train], size=self.size)
+            views, masks, tiles = _repeat_to(self.n, views, self.masks[train], tiles)
+            return (*self._g2r(views, fitted, salt + 8, saturated=tiles), masks)
         raise ValueError(f"unknown row {row!r}; expected one of {', '.join(ROWS)}")
 
 

@@ -244,10 +244,16 @@ def thumbnail_masks(images: np.ndarray, *, size: int = WORKING_SIZE) -> np.ndarr
     **Arguments:** `images` (N, h, w, 3) as `thumbnail_sources` takes them; `size`.
     **Returns:** (N, size, size) bool, True where the pixel is measured and trained on.
     """
+    tiles = missing_tiles(images, size=size)
+    return ~_dilate(np.repeat(np.repeat(tiles, 2, axis=1), 2, axis=2))
+
+
+def missing_tiles(images: np.ndarray, *, size: int = WORKING_SIZE) -> np.ndarray:
+    """(N, size/2, size/2) bool: the tiles of `thumbnail_sources`' mosaics whose area average takes
+    in a thumbnail pixel stored as 0 (written white, i.e. saturated in every channel)."""
     images = np.asarray(images, np.float32)
     missing = np.all(images <= 0, axis=-1, keepdims=True).astype(np.float32)
-    tiles = np.stack([_thumbnails.area_average(m, size // 2)[..., 0] > 0 for m in missing])
-    return ~_dilate(np.repeat(np.repeat(tiles, 2, axis=1), 2, axis=2))
+    return np.stack([_thumbnails.area_average(m, size // 2)[..., 0] > 0 for m in missing])
 
 
 @eqx.filter_jit
@@ -257,6 +263,12 @@ def _g2r_mosaics(keys, images, neutrals, profile):
     _, clean, _, metadata = clean_pairs(keys, images, profile, neutral=neutrals, transfer="linear", noise=False,
                                         quantize=True)
     return clean, metadata
+
+
+def _saturate(mosaic: np.ndarray, tiles: np.ndarray, white_level) -> np.ndarray:
+    """`mosaic` with the 2 x 2 tiles marked in `tiles` at the white level."""
+    sites = np.repeat(np.repeat(np.asarray(tiles, bool), 2, axis=0), 2, axis=1)
+    return np.where(sites, np.uint16(round(float(white_level))), mosaic)
 
 
 def _chunks(n: int):
@@ -285,7 +297,7 @@ def _views(views, size: int, name: str) -> np.ndarray:
 
 
 def g2r_pairs(views_linear: np.ndarray, profile, seed: int, *, neutrals=None, size: int = WORKING_SIZE,
-              name: str = "g2r_jax") -> tuple:
+              name: str = "g2r_jax", saturated=None) -> tuple:
     """Training pairs of g2r_jax RAW: linear sRGB views (n, size/2, size/2, 3), each pixel one CFA
     tile (repeated 2x2), made the way `g2r-convert --pairs --developed` makes its pairs
     (`g2r_jax.batch.pairs`): the clean mosaics of `profile` (`clean_pairs`: its lights, exposure,
@@ -294,7 +306,10 @@ def g2r_pairs(views_linear: np.ndarray, profile, seed: int, *, neutrals=None, si
     reference renderer.
 
     **Arguments:** `neutrals` (n, 3) fixes the lights instead of drawing them from the profile's
-    illuminant model; `seed` draws lights and exposures; `size` the DNGs' side.
+    illuminant model; `seed` draws lights and exposures; `size` the DNGs' side; `saturated`
+    (n, size/2, size/2) bool: tiles written at the white level in every site, as
+    `thumbnail_sources` writes the real thumbnails' missing pixels (real content made RAW again
+    then holds what the real pairs hold there, `missing_tiles`).
     **Returns:** (packed (n, size/2, size/2, 4), targets (n, size, size, 3)).
     """
     from g2r_jax.batch.pairs import clean_dng_info
@@ -321,7 +336,8 @@ def g2r_pairs(views_linear: np.ndarray, profile, seed: int, *, neutrals=None, si
         for i in range(stop - start):
             one = {k: v[i] for k, v in metadata.items()}
             info = clean_dng_info(fixed, one, *mosaics[i].shape)
-            sources.append(dng_source(mosaics[i], info, f"<{name} {start + i}>"))
+            mosaic = mosaics[i] if saturated is None else _saturate(mosaics[i], saturated[start + i], fixed.white_level)
+            sources.append(dng_source(mosaic, info, f"<{name} {start + i}>"))
     return _sources_to_pairs(sources, size)
 
 
