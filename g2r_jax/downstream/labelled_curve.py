@@ -8,7 +8,6 @@ check's figures at all files and g2r_jax alone ('fitted', which does not depend 
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 from typing import Callable, Optional, Sequence
 
 import numpy as np
@@ -90,7 +89,7 @@ def _figure(curve: LabelledCurve, path) -> bool:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from g2r_jax.io.atomic import atomic_write_bytes
+    from g2r_jax.downstream.report import save_figure
 
     fig, axes = plt.subplots(1, len(curve.points), figsize=(4.2 * len(curve.points), 3.4), squeeze=False)
     for ax, (estimator, by_count) in zip(axes[0], curve.points.items()):
@@ -108,9 +107,4 @@ def _figure(curve: LabelledCurve, path) -> bool:
         ax.set_ylabel("mean angular error (degrees)")
         ax.set_title(f"{curve.camera}: {estimator}")
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    try:
-        atomic_write_bytes(Path(path), lambda handle: fig.savefig(handle, format="png", dpi=90))
-    finally:
-        plt.close(fig)
-    return True
+    return save_figure(fig, path)

@@ -152,7 +152,6 @@ def plot(result: ExperimentResult, path) -> bool:
         return False
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from g2r_jax.io.atomic import atomic_write_bytes
 
     fig, ax = plt.subplots(figsize=(8, 0.45 * len(result.rows) + 1.2))
     height = 0.8 / len(result.estimators)
@@ -168,6 +167,15 @@ def plot(result: ExperimentResult, path) -> bool:
     ax.set_xlabel("mean angular error on the real files (degrees)")
     ax.set_title(f"{result.camera}: illuminant estimators by training set")
     ax.legend()
+    return save_figure(fig, path)
+
+
+def save_figure(fig, path) -> bool:
+    """Lay out a matplotlib figure, write it as a PNG atomically and close it. **Returns:** True."""
+    import matplotlib.pyplot as plt
+
+    from g2r_jax.io.atomic import atomic_write_bytes
+
     fig.tight_layout()
     try:
         atomic_write_bytes(Path(path), lambda handle: fig.savefig(handle, format="png", dpi=90))
