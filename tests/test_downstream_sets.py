@@ -179,3 +179,25 @@ def test_nus_loader_names_the_file_it_refuses(tmp_path):
     np.savez(bad, images=np.zeros((3, 32, 32, 3)), illuminants=np.ones((3, 3)))
     with pytest.raises(ValueError, match="bad.npz"):
         real_sets.load_nus(bad)
+
+
+def test_light_and_cast_statistics_read_known_scenes():
+    """Issue 47: the share near the top of the range, the spread of the light in stops and the
+    mean surface's cast under a neutral light, on scenes built to have them; the spread ratio of a
+    set with one cast against one with spread casts."""
+    lights = np.tile([[0.5, 1, 0.7]], (20, 1))
+    image = np.full((20, 64, 64, 3), 0.1)
+    image[:, :32] = 1.0                                      # half the frame at the top, half 3.32 stops down
+    rng = np.random.default_rng(5)
+    casts = np.c_[rng.normal(0.1, 0.2, 20), rng.normal(-0.2, 0.2, 20)]
+    tint = np.exp(np.c_[casts[:, 0], np.zeros(20), casts[:, 1]])
+    spread = image * tint[:, None, None, :] * lights[:, None, None, :]
+    spread /= spread.reshape(20, -1).max(1)[:, None, None, None]
+    values = content.image_statistics(spread, lights)
+    np.testing.assert_allclose(values["cast_red"], casts[:, 0], atol=1e-6)
+    np.testing.assert_allclose(values["cast_blue"], casts[:, 1], atol=1e-6)
+    np.testing.assert_allclose(values["light_spread"], np.log2(10) / 2, atol=0.02)
+    assert np.all(values["bright_share"] >= 0.49) and np.all(values["bright_share"] <= 0.51)
+    one = image * np.exp([0.1, 0.0, -0.2]) * lights[:, None, None, :]
+    rows = {r["statistic"]: r for r in content.compare((one / one.max(), lights), (spread, lights))}
+    assert rows["cast_red"]["spread_ratio"] < 0.1 and rows["cast_blue"]["spread_ratio"] < 0.1

@@ -12,7 +12,17 @@ Statistics (each per image; thumbnails are linear camera RGB scaled to a maximum
   pixels above 5 % of the maximum (darker ones are mostly noise), i.e. how colourful the
   scene's surfaces are under a neutral light;
 - `grey_world_bias`: angle (degrees) between the image's mean colour and its light: how far its
-  average surface is from grey (the cue grey-world estimators rely on: Buchsbaum 1980).
+  average surface is from grey (the cue grey-world estimators rely on: Buchsbaum 1980);
+- `bright_share`: share of pixels at or above half the maximum (how much of the frame lies near
+  the top of the range: skies, lamps, highlights);
+- `light_spread`: standard deviation of log2 luminance over lit pixels (how widely the scene
+  spreads its light, in stops);
+- `cast_red`, `cast_blue`: the mean surface's colour under a neutral light, log r/g and log b/g
+  of the image's mean divided by its light (Buchsbaum's grey world; its spread across the set is
+  the spread of the scenes' casts, which a content model that takes every frame to one cast
+  removes).
+Beside each distance, the spread of the synthetic set's values against the real set's (robust sd
+ratio, `spread_ratio`): a set whose median matches can still be far narrower or wider.
 The distance between the sets is the difference of medians in units of the real set's robust
 standard deviation (`g2r_jax.measure.robust_sd`: 1.4826 x MAD), with its sign: positive when the
 synthetic set's value is higher. The spread is floored at the statistic's resolution
@@ -35,6 +45,10 @@ STATISTICS = {
     "contrast": "contrast (log2 of the 95th / 5th percentile)",
     "chroma_spread": "chroma spread of the surfaces (white-balanced log-chroma std)",
     "grey_world_bias": "distance of the mean surface from grey (degrees)",
+    "bright_share": "share of bright pixels (>= 50 % of the brightest)",
+    "light_spread": "spread of the light (std of log2 luminance, stops)",
+    "cast_red": "cast of the mean surface, log r/g under a neutral light",
+    "cast_blue": "cast of the mean surface, log b/g under a neutral light",
 }
 _EPS = 1e-4
 
@@ -54,21 +68,28 @@ def image_statistics(images: np.ndarray, illuminants: np.ndarray) -> dict:
         "brightness": luminance.mean(1),
         "dark_share": ((luminance < 0.02) & ~zeroed).mean(1),
         "zeroed_share": zeroed.mean(1),
+        "bright_share": ((luminance >= 0.5 * np.maximum(luminance.max(1, keepdims=True), _EPS)) & ~zeroed).mean(1),
     }
     contrast, spread, bias = np.zeros(n), np.zeros(n), np.zeros(n)
+    light_spread, cast = np.zeros(n), np.zeros((n, 2))
     for i in range(n):
         values = pixels[i][lit[i]]
         if len(values) < 8:
-            contrast[i] = spread[i] = bias[i] = np.nan
+            contrast[i] = spread[i] = bias[i] = light_spread[i] = np.nan
+            cast[i] = np.nan
             continue
         low, high = np.percentile(values.mean(-1), [5, 95])
         contrast[i] = np.log2(high / max(low, _EPS))
+        light_spread[i] = float(np.std(np.log2(values.mean(-1))))
+        surface = np.maximum(values.mean(0) / lights[i], _EPS)
+        cast[i] = np.log(surface[[0, 2]] / surface[1])
         bright = values[values.mean(-1) >= 0.05]
         balanced = np.maximum((bright if len(bright) >= 8 else values) / lights[i], _EPS)
         chroma = np.log(balanced[:, [0, 2]] / balanced[:, 1:2])
         spread[i] = float(np.sqrt(np.mean(np.var(chroma, axis=0))))
         bias[i] = angular_error_degrees(values.mean(0), lights[i], invalid="nan")[0]
-    out.update(contrast=contrast, chroma_spread=spread, grey_world_bias=bias)
+    out.update(contrast=contrast, chroma_spread=spread, grey_world_bias=bias, light_spread=light_spread,
+               cast_red=cast[:, 0], cast_blue=cast[:, 1])
     return out
 
 
@@ -81,14 +102,16 @@ def resolution(statistic: str, pixels: int, share: float = 0.0) -> float:
     - `brightness`, a mean of N values in [0, 1]: one pixel changing across the range, 1/N;
     - `contrast` (log2 of a ratio): 0.01, a ratio of 0.7 %;
     - `chroma_spread` (natural-log chroma): 0.001, 0.1 % in a chroma ratio;
-    - `grey_world_bias`: 0.01 degree (estimators err in whole degrees).
-    The last three are chosen below any difference an estimator can feel.
+    - `grey_world_bias`: 0.01 degree (estimators err in whole degrees);
+    - `light_spread` (stops): 0.01; `cast_red`, `cast_blue` (natural-log ratios): 0.001.
+    The last ones are chosen below any difference an estimator can feel.
     """
     n = max(int(pixels), 1)
-    if statistic in ("dark_share", "zeroed_share"):
+    if statistic in ("dark_share", "zeroed_share", "bright_share"):
         p = min(max(float(share), 0.0), 1.0)
         return max(float(np.sqrt(p * (1.0 - p) / n)), 1.0 / n)
-    return {"brightness": 1.0 / n, "contrast": 0.01, "chroma_spread": 1e-3, "grey_world_bias": 0.01}[statistic]
+    return {"brightness": 1.0 / n, "contrast": 0.01, "chroma_spread": 1e-3, "grey_world_bias": 0.01,
+            "light_spread": 0.01, "cast_red": 1e-3, "cast_blue": 1e-3}[statistic]
 
 
 def compare(synthetic: tuple, real: tuple, control: tuple | None = None) -> list[dict]:
@@ -99,7 +122,8 @@ def compare(synthetic: tuple, real: tuple, control: tuple | None = None) -> list
     simulation alone moves a statistic: a CG statistic matters by how far it lies beyond it.
     **Returns:** one dict per statistic, largest excess first: statistic, description, medians
     (synthetic, real, control), distance and control_distance (in the real set's robust standard
-    deviations, signed), excess = |distance| - |control_distance|; real_spread, resolution, and
+    deviations, signed), excess = |distance| - |control_distance|; real_spread, synthetic_spread and
+    their ratio spread_ratio (the synthetic set's robust sd over the real one's); resolution, and
     `spread` (False when the real files' spread is no larger than the statistic's resolution:
     distance, control_distance and excess are then NaN, and the row sorts last).
     """
@@ -117,7 +141,10 @@ def compare(synthetic: tuple, real: tuple, control: tuple | None = None) -> list
         spread = robust_sd(values["real"], resolution=floor)
         has_spread = bool(np.isfinite(spread) and spread > floor)
         distance = {k: (medians[k] - medians["real"]) / spread if has_spread else float("nan") for k in medians}
+        synthetic_spread = robust_sd(values["synthetic"], resolution=floor)
         row = {"statistic": name, "description": description, **medians, "real_spread": float(spread),
+               "synthetic_spread": float(synthetic_spread),
+               "spread_ratio": float(synthetic_spread / spread) if has_spread else float("nan"),
                "resolution": floor, "spread": has_spread, "distance": float(distance["synthetic"])}
         if control is not None:
             row["control_distance"] = float(distance["control"])

@@ -128,15 +128,17 @@ def augmentation_phrase(result: ExperimentResult, estimator: str) -> str:
 
 
 def content_table(rows) -> str:
-    """Markdown table of `content.compare`: medians and distances in the real set's robust std; a
-    statistic without spread in the real files says so instead of a distance."""
+    """Markdown table of `content.compare`: medians, distances in the real set's robust std and the
+    ratio of the sets' spreads; a statistic without spread in the real files says so instead."""
     control = rows and "control" in rows[0]
-    head = "| statistic | CG set | real files | distance |" + (" real files made RAW again | its distance |" if control else "")
-    lines = [head, "|---|---|---|---|" + ("---|---|" if control else "")]
+    head = ("| statistic | CG set | real files | distance | spread, CG / real |"
+            + (" real files made RAW again | its distance |" if control else ""))
+    lines = [head, "|---|---|---|---|---|" + ("---|---|" if control else "")]
     for r in rows:
         measured = r.get("spread", True)
         distance = f"{r['distance']:+.1f}" if measured else "no spread in the real files"
-        line = f"| {r['description']} | {r['synthetic']:.3g} | {r['real']:.3g} | {distance} |"
+        ratio = f"{r['spread_ratio']:.2f}x" if measured and np.isfinite(r.get("spread_ratio", np.nan)) else "-"
+        line = f"| {r['description']} | {r['synthetic']:.3g} | {r['real']:.3g} | {distance} | {ratio} |"
         if control:
             line += f" {r['control']:.3g} | {r['control_distance']:+.1f} |" if measured else f" {r['control']:.3g} | - |"
         lines.append(line)
