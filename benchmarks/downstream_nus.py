@@ -15,7 +15,9 @@ profiles without measured lights have them).
         [--jobs 2] [--json out/downstream_nus.json] [--markdown out/downstream_nus.md]
     python benchmarks/downstream_nus.py --labelled 10,30,100,all --rows real,real_plus_fitted,real_plus_upi,fitted
 
-Prints one table per camera as it finishes, then the summary across cameras. `--labelled`
+Prints one table per camera as it finishes, then the summary across cameras. With --json the
+results are written after each camera (atomically, per-image errors included), and a run stopped
+and started again with the same --json keeps the cameras it holds and runs the others. `--labelled`
 (issue 48, augmentation): each camera once per number of labelled real files that 'real' and the
 augmented rows ('real_plus_fitted', 'real_plus_upi': the recipe chosen on the training files,
 `g2r_jax.downstream.augmentation`) train on, drawn from the training folds; then the curve
@@ -107,14 +109,23 @@ def main(argv=None) -> int:
             for name in cameras for c in counts]
     jobs = [(name, rows, estimators, args.seeds, args.n, args.illuminant_model, args.lights, cameras, c)
             for name in cameras for c in counts]
+    results = _earlier(args.json)
+    todo = [(key, job) for key, job in zip(keys, jobs) if key not in results]
+    for key in keys:
+        if key in results:
+            print(f"  {key}: kept from {args.json}", file=sys.stderr, flush=True)
     if args.jobs > 1:
         import multiprocessing
 
         with multiprocessing.get_context("spawn").Pool(args.jobs) as pool:
-            finished = pool.imap(run_camera, jobs)
-            results = dict(zip(keys, finished))
+            for key, result in zip([k for k, _ in todo], pool.imap(run_camera, [j for _, j in todo])):
+                results[key] = result
+                _write_json(args, results, estimators, time.perf_counter() - start)
     else:
-        results = {key: run_camera(job) for key, job in zip(keys, jobs)}
+        for key, job in todo:
+            results[key] = run_camera(job)
+            _write_json(args, results, estimators, time.perf_counter() - start)
+    results = {key: results[key] for key in keys}
     lines = []
     for name, result in results.items():
         block = [f"## {name} ({len(result.errors[(rows[0], estimators[0])][0])} real images; {result.seconds:.0f} s)",
@@ -132,12 +143,46 @@ def main(argv=None) -> int:
     if args.markdown:
         args.markdown.parent.mkdir(parents=True, exist_ok=True)
         args.markdown.write_text("\n".join(lines) + "\n")
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        document = {name: {**r.to_dict(), "decomposition": {e: report.decomposition(r, e) for e in estimators}}
-                    for name, r in results.items()}
-        args.json.write_text(json.dumps({"seconds": total, "n": args.n, "cameras": document}, indent=1))
+    _write_json(args, results, estimators, total)
     return 0
+
+
+def _write_json(args, results, estimators, seconds) -> None:
+    """The results so far as JSON (atomically): summaries, decompositions and per-image errors."""
+    from g2r_jax.downstream import report
+    from g2r_jax.io.atomic import atomic_write_bytes
+
+    if not args.json:
+        return
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    document = {name: {**r.to_dict(), "decomposition": {e: report.decomposition(r, e) for e in estimators},
+                       "errors": {f"{row}/{e}": [np.asarray(a).tolist() for a in per_seed]
+                                  for (row, e), per_seed in r.errors.items()}}
+                for name, r in results.items()}
+    atomic_write_bytes(args.json, json.dumps({"seconds": seconds, "n": args.n, "cameras": document}).encode())
+
+
+def _earlier(path) -> dict:
+    """The results of an earlier run's --json (per-image errors rebuilt into `ExperimentResult`s)."""
+    from g2r_jax.downstream.experiment import ExperimentResult
+
+    if not path or not Path(path).is_file():
+        return {}
+    try:
+        cameras = json.loads(Path(path).read_text())["cameras"]
+    except (OSError, ValueError, KeyError) as error:
+        print(f"  {path}: not read ({error}); every camera runs", file=sys.stderr)
+        return {}
+    out = {}
+    for key, doc in cameras.items():
+        if "errors" not in doc:
+            continue
+        errors = {tuple(name.split("/")): [np.asarray(a) for a in per_seed] for name, per_seed in doc["errors"].items()}
+        recipes = {tuple(name.split("/")): v for name, v in doc.get("recipes", {}).items()}
+        out[key] = ExperimentResult(camera=doc["camera"], rows=tuple(doc["rows"]), estimators=tuple(doc["estimators"]),
+                                    seeds=tuple(doc["seeds"]), errors=errors, seconds=doc["seconds"], notes=doc["notes"],
+                                    recipes=recipes, labelled=doc.get("labelled"), files=doc.get("files", 0))
+    return out
 
 
 def run_camera(job):

@@ -46,7 +46,7 @@ def test_synthetic_files_help_few_real_files_and_useless_ones_are_refused(kind, 
 
     recipe, scores = aug.choose(kind, aug.AugmentedSet(real, shuffled), seed=0)
     assert scores[str(recipe)] <= scores["real"]
-    assert scores["mixed 0.75"] > scores["real"] + 1      # the misleading synthetic files cost, and are seen to
+    assert scores["mixed, g2r_jax as 300 files"] > scores["real"] + 1    # misleading synthetic files cost, and are seen to
 
 
 def test_too_few_real_files_take_the_stated_recipe(worlds):
@@ -139,7 +139,7 @@ def test_the_labelled_curve_has_a_point_per_count_and_draws_it(monkeypatch, tmp_
         return lambda test: np.tile(np.asarray(y).mean(0), (len(test), 1))
 
     def chosen(estimator, data, seed=0, recipes=None):
-        return (lambda test: np.tile(np.asarray(data.synthetic[1]).mean(0), (len(test), 1))), aug.Recipe("mixed", 0.5), {}
+        return (lambda test: np.tile(np.asarray(data.synthetic[1]).mean(0), (len(test), 1))), aug.Recipe("mixed", 30), {}
 
     monkeypatch.setattr(est, "train_estimator", alone)
     monkeypatch.setattr(aug, "train_chosen", chosen)
