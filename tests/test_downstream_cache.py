@@ -61,3 +61,33 @@ def test_damaged_entries_are_retrained_and_the_store_keeps_its_cap(tmp_path):
     assert cache.get(key_of("unit", 9)) is not None            # the newest kept, the oldest gone
     assert cache.get(key_of("unit", 0)) is None
     assert key_of("a", np.zeros(3)) != key_of("a", np.zeros(3, np.float32))
+
+
+def test_the_isp_task_reuses_its_stored_networks(monkeypatch, tmp_path):
+    """A second ISP run on the same inputs trains no UNet and gives the same measures and figure."""
+    import g2r_jax
+    from g2r_jax.downstream import isp, isp_net
+    from test_downstream_isp import _sources
+
+    from g2r_jax.downstream.real_sets import RealSet
+
+    profile = g2r_jax.load_profile("NikonD40")
+    sources, images, lights = _sources(profile, 6)
+    real = RealSet(name="tiny", images=images, illuminants=lights / lights.sum(1, keepdims=True))
+    cg = [(np.random.default_rng(k).random((40, 48, 3)) * 255).astype(np.uint8) for k in range(2)]
+    training = isp_net.IspTraining(steps=2, steps_per_round=2, batch=2, width=2)
+    trained = []
+    original = isp_net.train_many
+    monkeypatch.setattr(isp_net, "train_many", lambda sets, *a, **k: trained.append(len(sets)) or original(sets, *a, **k))
+    cache = DownstreamCache(tmp_path / "store")
+    run = lambda rows: isp.run_isp_task(real, profile, cg, rows=rows, seeds=(0,), n=4, dngs=sources, training=training,
+                                        cache=cache)
+    first = run(("upi", "real"))
+    assert sum(trained) == 6 and cache.hits == 0
+    again = run(("upi", "real"))
+    assert sum(trained) == 6 and cache.hits == 6
+    for key in first.metrics:
+        np.testing.assert_array_equal(first.metrics[key][0], again.metrics[key][0])
+    np.testing.assert_array_equal(first.examples["predicted"]["real"], again.examples["predicted"]["real"])
+    run(("upi", "real", "fitted"))
+    assert sum(trained) == 9                       # only the new row's three folds

@@ -116,13 +116,13 @@ def _isp_rows(profile_given: bool) -> tuple:
     return tuple(r for r in isp.ROWS if profile_given or r != "shipped")
 
 
-def _isp_check(inputs: Inputs, profile, *, profile_given: bool, seeds, folds, say) -> tuple:
+def _isp_check(inputs: Inputs, profile, *, profile_given: bool, seeds, folds, say, cache=None) -> tuple:
     """(IspResult, JSON part, sentence, markdown lines) of the neural-ISP task on the real DNGs
     (`downstream.isp.run_isp_task`, its own number of synthetic pairs)."""
     from g2r_jax.downstream import isp
 
     result = isp.run_isp_task(inputs.real, profile, inputs.cg, rows=_isp_rows(profile_given), seeds=seeds,
-                              folds=folds, progress=say)
+                              folds=folds, progress=say, cache=cache)
     lines = ["## Neural ISP (RAW -> sRGB)", "", result.sentence(), "", result.table(), "",
              *(f"- {note}" for note in result.notes), "",
              "Predicted against target on a few real test files: `isp.png`.", ""]
@@ -200,8 +200,8 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     (`experiment.illuminant_experiment`); `on_problem(path, reason)`: called as each input is left out;
     `curve`: numbers of labelled real files for the augmentation curve (`downstream.labelled_curve`:
     real alone and real + g2r_jax at each; needs the rows 'real' and 'real_plus_fitted'); `cache`:
-    a `downstream.cache.DownstreamCache` of finished trainings of the colour check (None: off; the
-    command's default is the user's cache folder, `--no-cache` off).
+    a `downstream.cache.DownstreamCache` of finished trainings of the colour check and the ISP task
+    (None: off; the command's default is the user's cache folder, `--no-cache` off).
 
     **Returns:** a `report.Report` (its `status` is the command's exit status). **Raises:**
     `DngError` naming the folder when a check cannot run on its inputs, ValueError for options
@@ -254,7 +254,7 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
                      "The curve: `augmentation.png`.", ""]
     if inputs.real is not None and "isp" in tasks:
         isp_result, part, said, lines = _isp_check(inputs, sensor, profile_given=profile is not None,
-                                                   seeds=tuple(range(seeds)), folds=folds, say=say)
+                                                   seeds=tuple(range(seeds)), folds=folds, say=say, cache=cache)
         document["isp"] = part
         sentences.append(said)
         body += lines
@@ -265,7 +265,7 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
         document["denoising"] = part
         sentences.append(said)
         body += lines
-    if cache is not None and cache.enabled and result is not None:
+    if cache is not None and cache.enabled and (result is not None or isp_result is not None):
         document["cache"] = {"folder": str(cache.folder), "reused": cache.hits, "trained": cache.misses}
         body += [f"- {cache.summary()}", *(f"- {note}" for note in cache.notes), ""]
     markdown += [*sentences, "", *body]

@@ -355,6 +355,53 @@ def _real_pairs(real: RealSet, dngs, size: int, folds: int, masks=None):
     return real, pairs, [s for i, s in enumerate(sources) if i in set(kept)], skipped
 
 
+def _unit_keys(pairs, cg_linear, profile, shipped, **options):
+    """key(row, test, seed) of one UNet's stored outcome (`downstream.cache`): the code, the real
+    pairs (and masks), the CG images, the profiles and the options."""
+    import json
+
+    from g2r_jax.downstream.cache import code_digest, key_of
+    from g2r_jax.profile.schema import profile_to_dict
+
+    profile_json = lambda p: json.dumps(profile_to_dict(p), sort_keys=True, default=str)
+    base = key_of(code_digest(), "isp task", list(pairs), list(cg_linear), profile_json(profile), profile_json(shipped),
+                  sorted(options.items()))
+    return lambda row, test, seed: key_of(base, row, np.asarray(test), seed)
+
+
+def _outcome(model, pairs, test, shown) -> dict:
+    """What the run keeps of one trained UNet: its measures on the test fold (masked, and over every
+    pixel when there are masks) and its predictions of the figure's files in that fold."""
+    from g2r_jax.downstream import isp_net
+
+    predicted = isp_net.predict(model, pairs[0][test])
+    mask = pairs[2][test] if len(pairs) > 2 else None
+    out = {f"masked_{k}": v for k, v in isp_net.measure(predicted, pairs[1][test], mask).items()}
+    if mask is not None:
+        out.update({f"all_{k}": v for k, v in isp_net.measure(predicted, pairs[1][test]).items()})
+    slots = [k for k, index in enumerate(shown) if index in test]
+    out["example_slots"] = np.asarray(slots, int)
+    out["examples"] = predicted[[int(np.searchsorted(test, shown[k])) for k in slots]]
+    return out
+
+
+def _fold_outcomes(sets, rows, pairs, train, test, fold, seed, shown, training, cache, key) -> dict:
+    """{row: outcome} of one fold and seed: from the cache where it holds them, the other rows'
+    UNets trained (together, as `isp_net.train_many` does) and stored."""
+    from g2r_jax.downstream import isp_net
+
+    outcomes = {row: cache.get(key(row)) if cache is not None else None for row in rows}
+    todo = [row for row in rows if outcomes[row] is None]
+    if todo:
+        models = isp_net.train_many([sets.build(row, train, fold, seed) for row in todo], [1000 * seed + fold] * len(todo),
+                                    training)
+        for row, model in zip(todo, models):
+            outcomes[row] = _outcome(model, pairs, test, shown)
+            if cache is not None:
+                cache.put(key(row), outcomes[row])
+    return outcomes
+
+
 def _examples(fold_sets, count: int = EXAMPLES) -> np.ndarray:
     """The real files shown in the figure: the first test file of each fold, then the next ones."""
     order = [int(i) for column in zip(*[list(f) for f in fold_sets]) for i in column] if fold_sets else []
@@ -364,7 +411,7 @@ def _examples(fold_sets, count: int = EXAMPLES) -> np.ndarray:
 def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEFAULT_ROWS, seeds=(0, 1),
                  folds: int = 3, n: int = 200, size: int = _pairs.WORKING_SIZE, dngs=None, shipped=None,
                  lights: Optional[int] = None, illuminant_model: str = "auto", single_light: str = "auto",
-                 training: IspTraining = IspTraining(), masks=None,
+                 training: IspTraining = IspTraining(), masks=None, cache=None,
                  progress: Optional[Callable[[str], None]] = None) -> IspResult:
     """Train the ISP UNet on each row's pairs, test it on the real pairs (module docstring).
 
@@ -383,13 +430,14 @@ def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEF
     (`isp_net.IspTraining`); `masks`: (N, size, size) bool per real DNG, True where its target
     holds what the real data holds (`isp_pairs.thumbnail_masks` of the NUS thumbnails: their masked
     chart and saturated pixels are out of the real rows' loss and out of every row's measures;
-    None for real DNGs, whose clipped pixels are content); `progress`: a callable taking a line of text, or a
+    None for real DNGs, whose clipped pixels are content); `cache`: a `downstream.cache.
+    DownstreamCache` whose stored outcomes (each network's measures and example images) replace
+    the trainings it holds (None: every UNet is trained); `progress`: a callable taking a line of text, or a
     `downstream.progress.Progress` (advanced by one per UNet: `trainings(...)` of them).
 
     **Returns:** an `IspResult`. **Raises:** ValueError for unknown rows or a set too small for
     the folds (saying how many files it needs).
     """
-    from g2r_jax.downstream import isp_net
     from g2r_jax.measure import folds_of
 
     unknown = [r for r in rows if r not in ROWS]
@@ -411,25 +459,25 @@ def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEF
     examples = {"names": names, "target": pairs[1][shown], "predicted": {r: np.zeros_like(pairs[1][shown]) for r in rows}}
     metrics = {(r, m): [] for r in rows for m in METRICS}
     unmasked = {key: [] for key in metrics} if test_masks is not None else {}
+    unit_key = _unit_keys(pairs, linear, profile, sets.shipped, n=n, size=size, lights=lights, folds=folds,
+                          illuminant_model=illuminant_model, single_light=single_light,
+                          training=sorted(dataclasses.asdict(training).items()))
     for seed in seeds:
         per_fold = {key: [] for key in metrics}
         per_fold_unmasked = {key: [] for key in unmasked}
         for fold, test in enumerate(fold_sets):
             train = np.setdiff1d(np.arange(len(real.images)), test)
-            training_sets = [sets.build(row, train, fold, seed) for row in rows]
-            models = isp_net.train_many(training_sets, [1000 * seed + fold] * len(rows), training)
-            for row, model in zip(rows, models):
-                predicted = isp_net.predict(model, pairs[0][test])
-                mask = None if test_masks is None else test_masks[test]
-                for metric, values in isp_net.measure(predicted, pairs[1][test], mask).items():
-                    per_fold[(row, metric)].append(values)
-                if unmasked:
-                    for metric, values in isp_net.measure(predicted, pairs[1][test]).items():
-                        per_fold_unmasked[(row, metric)].append(values)
+            outcomes = _fold_outcomes(sets, rows, pairs, train, test, fold, seed, shown, training, cache,
+                                      lambda row: unit_key(row, test, seed))
+            for row in rows:
+                outcome = outcomes[row]
+                for metric in METRICS:
+                    per_fold[(row, metric)].append(outcome[f"masked_{metric}"])
+                    if unmasked:
+                        per_fold_unmasked[(row, metric)].append(outcome[f"all_{metric}"])
                 if seed == seeds[0]:
-                    for k, index in enumerate(shown):
-                        if index in test:
-                            examples["predicted"][row][k] = predicted[int(np.searchsorted(test, index))]
+                    for slot, image in zip(outcome["example_slots"], outcome["examples"]):
+                        examples["predicted"][row][int(slot)] = image
                 advance(progress, 1, f"ISP task: seed {seed}, fold {fold + 1}, {row}")
             say(f"{real.name}: ISP seed {seed}, fold {fold + 1}/{folds} done ({time.perf_counter() - start:.0f} s)")
         for key, parts in per_fold.items():
