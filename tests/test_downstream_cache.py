@@ -91,3 +91,24 @@ def test_the_isp_task_reuses_its_stored_networks(monkeypatch, tmp_path):
     np.testing.assert_array_equal(first.examples["predicted"]["real"], again.examples["predicted"]["real"])
     run(("upi", "real", "fitted"))
     assert sum(trained) == 9                       # only the new row's three folds
+
+
+def test_the_burst_check_reuses_its_stored_denoisers(monkeypatch, tmp_path):
+    import g2r_jax
+    from g2r_jax.downstream import bursts, denoising
+    from g2r_jax.downstream.denoiser import DenoiserTraining
+
+    profile = g2r_jax.load_profile("s20fe_night")
+    bursts.write_synthetic_burst(tmp_path / "burst", profile, n_frames=6, height=48, width=64, iso=1600, seed=3)
+    burst = bursts.read_burst(tmp_path / "burst")
+    trained = []
+    original = denoising._train_row
+    monkeypatch.setattr(denoising, "_train_row", lambda *a, **k: trained.append(1) or original(*a, **k))
+    cache = DownstreamCache(tmp_path / "store")
+    run = lambda: denoising.run_burst_check(burst, profile, rows=("fitted", "real"), contents=("scene",), seeds=(0,),
+                                            steps=None, max_steps=4, training=DenoiserTraining(batch=2, steps_per_round=2),
+                                            cache=cache)
+    first = run()
+    count = len(trained)
+    again = run()
+    assert count > 0 and len(trained) == count and first.psnr == again.psnr and first.steps == again.steps

@@ -154,14 +154,14 @@ def _plan(progress, inputs: Inputs, *, tasks, rows, estimators, seeds: int, fold
     plan(progress, units)
 
 
-def _burst_check(inputs: Inputs, profile, *, seeds, steps, say) -> tuple:
+def _burst_check(inputs: Inputs, profile, *, seeds, steps, say, cache=None) -> tuple:
     """(DenoisingResult, JSON part, sentence, markdown lines) of the burst's denoising check
     (`denoising.run_burst_check`)."""
     from g2r_jax.downstream import denoising
 
     contents = _burst_contents(inputs)
     result = denoising.run_burst_check(inputs.burst, profile, inputs.cg_paths, contents=contents, seeds=seeds,
-                                       steps=steps, progress=say)
+                                       steps=steps, progress=say, cache=cache)
     document = {"psnr": {f"{r}/{c}": v for (r, c), v in result.psnr.items()}, "noisy_psnr": result.noisy_psnr,
                 "peak": result.peak, "steps": result.steps, "step_curve": list(result.step_curve),
                 "cg_levels": result.cg_levels, "noise": result.noise, "frames": list(result.frames), "iso": result.iso}
@@ -200,8 +200,8 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     (`experiment.illuminant_experiment`); `on_problem(path, reason)`: called as each input is left out;
     `curve`: numbers of labelled real files for the augmentation curve (`downstream.labelled_curve`:
     real alone and real + g2r_jax at each; needs the rows 'real' and 'real_plus_fitted'); `cache`:
-    a `downstream.cache.DownstreamCache` of finished trainings of the colour check and the ISP task
-    (None: off; the command's default is the user's cache folder, `--no-cache` off).
+    a `downstream.cache.DownstreamCache` of finished trainings of the colour check, the ISP task and
+    the burst check (None: off; the command's default is the user's cache folder, `--no-cache` off).
 
     **Returns:** a `report.Report` (its `status` is the command's exit status). **Raises:**
     `DngError` naming the folder when a check cannot run on its inputs, ValueError for options
@@ -261,11 +261,11 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     if inputs.burst is not None:
         product = sensor if profile is not None else with_files_content(sensor, inputs)
         denoised, part, said, lines = _burst_check(inputs, product, seeds=tuple(range(seeds)), steps=denoiser_steps,
-                                                   say=say)
+                                                   say=say, cache=cache)
         document["denoising"] = part
         sentences.append(said)
         body += lines
-    if cache is not None and cache.enabled and (result is not None or isp_result is not None):
+    if cache is not None and cache.enabled and (result is not None or isp_result is not None or denoised is not None):
         document["cache"] = {"folder": str(cache.folder), "reused": cache.hits, "trained": cache.misses}
         body += [f"- {cache.summary()}", *(f"- {note}" for note in cache.notes), ""]
     markdown += [*sentences, "", *body]

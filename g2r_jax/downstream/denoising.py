@@ -559,7 +559,7 @@ def _check_arguments(burst, profile, rows, contents):
 def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENTS, seeds=(0, 1, 2), steps=None,
                     max_steps: int = MAX_STEPS, folds: int = 2, truth_noise=None, cg_count: int = 32,
                     training: DenoiserTraining = DenoiserTraining(), progress=None,
-                    workers: int | None = None) -> DenoisingResult:
+                    workers: int | None = None, cache=None) -> DenoisingResult:
     """The denoising check on a burst (a `Burst`, or a folder / list of DNGs for `read_burst`).
 
     **Arguments:** `profile` the camera's SensorProfile (its CFA pattern must be the burst's);
@@ -572,7 +572,9 @@ def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENT
     (shot (4,), read (4,)) for the `truth` row instead of photon transfer; `progress` a callable
     taking one line of text, or a `downstream.progress.Progress` (advanced per denoiser trained:
     `trainings(...)` of them); `workers`: denoisers trained side by side in threads (None: up
-    to `MAX_WORKERS`, at most the CPU count; the PSNRs do not depend on it). **Returns:** `DenoisingResult` (`.sentence()`, `.table()`,
+    to `MAX_WORKERS`, at most the CPU count; the PSNRs do not depend on it); `cache` a
+    `downstream.cache.DownstreamCache` whose stored scores (and chosen step count) replace the
+    trainings it holds (None: all trained). **Returns:** `DenoisingResult` (`.sentence()`, `.table()`,
     `.summary()`).
     """
     say = progress or (lambda line: None)
@@ -591,13 +593,13 @@ def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENT
     noisy_psnr = float(np.mean([psnr(burst.planes[i], scoring.reference(i), scoring.variance[i], scoring.peak)
                                 for i in range(burst.n)]))
     curve = ()
+    cg = _load_cg(cg_images, cg_count) if "cg" in contents and synthetic else None
+    unit = _unit_keys(burst, cg, profile, truth_noise=truth_noise, training=sorted(dataclasses.asdict(training).items()),
+                      max_steps=max_steps, folds=folds) if cache is not None else None
     if steps is None:
-        train0 = [i for i in range(burst.n) if i not in test_folds[0]]
-        steps, curve = choose_steps(jax.random.PRNGKey(int(seeds[0])), burst, train0, scoring.gain,
-                                    training=training, max_steps=max_steps)
+        steps, curve = _chosen_steps(burst, test_folds, scoring, seeds, training, max_steps, cache, unit)
         say(f"steps: {steps} (validation error by round, dB: {' '.join(f'{e:.2f}' for e in curve)})")
         advance(progress, 1, "burst check: denoisers")
-    cg = _load_cg(cg_images, cg_count) if "cg" in contents and synthetic else None
     results = {(r, c): [] for r in rows for c in contents if not (r == "real" and c == "cg")}
     uncorrected = {k: [] for k in results}
     seconds = {r: [] for r in rows}
@@ -610,10 +612,14 @@ def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENT
         def run(job):
             row, content, k, test = job
             started = time.perf_counter()
-            train = [i for i in range(burst.n) if i not in test]
-            model = _train_row(jax.random.fold_in(base, 0 if content == "cg" else 1 + k), burst, row,
-                               specs[row], content, train, cg_planes, scoring.gain, steps, training)
-            got = scoring.score(model, range(burst.n) if content == "cg" else test)
+            key = None if unit is None else unit(row, content, k, test, int(seed), int(steps))
+            got = _stored_scores(cache, key)
+            if got is None:
+                train = [i for i in range(burst.n) if i not in test]
+                model = _train_row(jax.random.fold_in(base, 0 if content == "cg" else 1 + k), burst, row,
+                                   specs[row], content, train, cg_planes, scoring.gain, steps, training)
+                got = scoring.score(model, range(burst.n) if content == "cg" else test)
+                _store_scores(cache, key, got)
             advance(progress, 1, f"burst check: seed {seed}, {row}, {content}")
             return got, time.perf_counter() - started
 
@@ -626,6 +632,50 @@ def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENT
                            seconds=seconds, peak=scoring.peak, step_curve=tuple(np.asarray(curve).tolist()),
                            cg_levels="" if cg is None else " (each brought to the scene's median and 99th "
                                                            "percentile by an affine map)")
+
+
+def _unit_keys(burst: Burst, cg, profile, **options):
+    """key(*parts) of one stored outcome of the burst check (`downstream.cache`): the code, the
+    burst's frames, the CG images, the profile and the options."""
+    import json
+
+    from g2r_jax.downstream.cache import code_digest, key_of
+    from g2r_jax.profile.schema import profile_to_dict
+
+    base = key_of(code_digest(), "burst check", burst.planes, burst.iso, list(burst.names), None if cg is None else cg,
+                  json.dumps(profile_to_dict(profile), sort_keys=True, default=str), sorted(options.items(), key=str))
+    return lambda *parts: key_of(base, *parts)
+
+
+def _chosen_steps(burst, test_folds, scoring, seeds, training, max_steps, cache, unit) -> tuple:
+    """`choose_steps` on the first fold's training frames, or its stored (steps, curve)."""
+    key = None if unit is None else unit("steps", int(seeds[0]))
+    stored = None if key is None else cache.get(key)
+    if stored is not None:
+        return int(stored["steps"]), tuple(stored["curve"].tolist())
+    train0 = [i for i in range(burst.n) if i not in test_folds[0]]
+    steps, curve = choose_steps(jax.random.PRNGKey(int(seeds[0])), burst, train0, scoring.gain,
+                                training=training, max_steps=max_steps)
+    if key is not None:
+        cache.put(key, {"steps": np.asarray(steps), "curve": np.asarray(curve, np.float64)})
+    return steps, curve
+
+
+def _stored_scores(cache, key):
+    """(corrected, raw) PSNR per frame stored under `key`, or None."""
+    stored = None if key is None else cache.get(key)
+    if stored is None:
+        return None
+    frames = [int(i) for i in stored["frames"]]
+    return dict(zip(frames, stored["corrected"].tolist())), dict(zip(frames, stored["raw"].tolist()))
+
+
+def _store_scores(cache, key, got) -> None:
+    if key is not None:
+        corrected, raw = got
+        frames = sorted(corrected)
+        cache.put(key, {"frames": np.asarray(frames, int), "corrected": np.asarray([corrected[i] for i in frames]),
+                        "raw": np.asarray([raw[i] for i in frames])})
 
 
 def _collect(seed, rows, results, uncorrected, seconds, done: dict, say) -> None:
