@@ -14,6 +14,7 @@ profiles without measured lights have them).
         [--estimators cnn,moments,histogram] [--rows ...] [--illuminant-model auto] [--lights 25]
         [--jobs 2] [--json out/downstream_nus.json] [--markdown out/downstream_nus.md]
     python benchmarks/downstream_nus.py --labelled 10,30,100,all --rows real,real_plus_fitted,real_plus_upi,fitted
+    python benchmarks/downstream_nus.py --summary out/a.json,out/b.json    # the tables of earlier runs
 
 Prints one table per camera as it finishes, then the summary across cameras. With --json the
 results are written after each camera (atomically, per-image errors included), and a run stopped
@@ -96,7 +97,10 @@ def main(argv=None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="cameras run in this many processes at once")
     parser.add_argument("--json", type=Path)
     parser.add_argument("--markdown", type=Path)
+    parser.add_argument("--summary", help="comma-separated JSON files of earlier runs: print their tables, run nothing")
     args = parser.parse_args(argv)
+    if args.summary:
+        return _summary(args.summary.split(","))
     if not NUS.is_dir() or not CARLA.is_dir():
         print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
         return 2
@@ -145,6 +149,42 @@ def main(argv=None) -> int:
         args.markdown.write_text("\n".join(lines) + "\n")
     _write_json(args, results, estimators, total)
     return 0
+
+
+def _summary(paths) -> int:
+    """Print the tables of earlier runs' JSON files (a later file's camera wins)."""
+    results = {}
+    for path in paths:
+        results.update(_earlier(Path(path)))
+    if not results:
+        print("no results in " + ", ".join(paths), file=sys.stderr)
+        return 2
+    first = next(iter(results.values()))
+    rows, estimators = list(first.rows), list(first.estimators)
+    print("## All cameras: mean error (degrees), pooled over seeds\n\n" + summary_table(results, rows, estimators))
+    if any("@" in key for key in results):
+        print("\n## Labelled real files: mean of the cameras (degrees)\n\n" + curve_table(results, rows, estimators))
+        for e in estimators:
+            print(f"\n## {e}: real alone -> real + g2r_jax, per camera\n\n" + camera_curve_table(results, e))
+    return 0
+
+
+def camera_curve_table(results, estimator: str) -> str:
+    """Markdown: per camera and number of labelled files, real alone -> real + g2r_jax (change)."""
+    counts = sorted({key.split("@")[1] for key in results if "@" in key}, key=lambda c: (c == "all", int(c) if c != "all" else 0))
+    cameras = list(dict.fromkeys(key.split("@")[0] for key in results if "@" in key))
+    out = ["| camera | " + " | ".join(f"{c} files" for c in counts) + " |", "|---|" + "---|" * len(counts)]
+    for camera in cameras:
+        cells = []
+        for count in counts:
+            r = results.get(f"{camera}@{count}")
+            if r is None or not {"real", "real_plus_fitted"} <= set(r.rows):
+                cells.append("")
+                continue
+            alone, added = (r.summary(row, estimator)["mean"] for row in ("real", "real_plus_fitted"))
+            cells.append(f"{alone:.2f} -> {added:.2f} ({added / alone - 1:+.0%})")
+        out.append(f"| {camera} | " + " | ".join(cells) + " |")
+    return "\n".join(out)
 
 
 def _write_json(args, results, estimators, seconds) -> None:
