@@ -5,7 +5,9 @@ Location: `$G2R_JAX_CACHE_DIR` if set, else `$XDG_CACHE_HOME/g2r_jax/jax`, else
 `~/.cache/g2r_jax/jax`. Opt out with `--no-compile-cache` on any command or
 `G2R_JAX_NO_COMPILE_CACHE=1`. The cache is JAX's own (`jax_compilation_cache_dir`); entries are
 keyed by the program, the JAX/XLA version and the device, and the folder can be deleted at any
-time. A cache that cannot be created or written is skipped with one line on stderr.
+time; it keeps at most `MAX_BYTES` (the least recently used programs go first), and every read and
+write holds JAX's file lock, so that processes running at once never read a half-written entry. A
+cache that cannot be created or written is skipped with one line on stderr.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from pathlib import Path
 
 DISABLE_VARIABLE = "G2R_JAX_NO_COMPILE_CACHE"
 LOCATION_VARIABLE = "G2R_JAX_CACHE_DIR"
+MAX_BYTES = 2 * 2 ** 30     # the compilation cache's cap; least recently used programs go first
 
 
 def default_location() -> Path:
@@ -47,8 +50,11 @@ def enable(location: Path | str | None = None, *, program: str = "g2r_jax") -> P
         print(f"{program}: warning: compilation cache {folder} not usable ({error.strerror or error}); "
               f"compiling without it", file=sys.stderr)
         return None
+    # A size cap turns on JAX's file lock around every read and write of the cache: without it an
+    # entry is written in place, and a second process reading it half-written crashed in XLA's
+    # deserialisation (a segmentation fault seen with two test workers converting at once).
     settings = {"jax_compilation_cache_dir": str(folder), "jax_persistent_cache_min_compile_time_secs": 0.0,
-                "jax_persistent_cache_min_entry_size_bytes": 0}
+                "jax_persistent_cache_min_entry_size_bytes": 0, "jax_compilation_cache_max_size": MAX_BYTES}
     if "jax" in sys.modules:
         import jax
 
