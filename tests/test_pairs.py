@@ -172,10 +172,7 @@ def test_adapted_scene_is_what_the_mosaic_holds():
 
 
 def _convert_in_a_process(*argv):
-    """g2r-convert run as a user runs it, in its own process: (status, stderr). (Run in this test's
-    process after hundreds of other tests, the second conversion crashed in XLA while loading a
-    program from the compilation cache; in fresh processes it does not: see the closing note of
-    the session that added this test.)"""
+    """g2r-convert run as a user runs it, in its own process: (status, stderr)."""
     import subprocess
     import sys
 
