@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["DownstreamCache", "default_location", "code_digest", "key_of", "LOCATION_VARIABLE", "DEFAULT_CAP"]
+__all__ = ["DownstreamCache", "default_location", "code_digest", "key_of", "profile_text", "LOCATION_VARIABLE", "DEFAULT_CAP"]
 
 LOCATION_VARIABLE = "G2R_JAX_DOWNSTREAM_CACHE"
 DEFAULT_CAP = 512 * 2 ** 20       # bytes: a check's estimates take kilobytes, an ISP's examples more
@@ -64,6 +64,15 @@ def _update(digest, part) -> None:
             _update(digest, item)
     else:
         digest.update(f"{type(part).__name__} {part!r}".encode())
+
+
+def profile_text(profile) -> str:
+    """A profile as a key part: its JSON (`profile.schema.profile_to_dict`), keys sorted."""
+    import json
+
+    from g2r_jax.profile.schema import profile_to_dict
+
+    return json.dumps(profile_to_dict(profile), sort_keys=True, default=str)
 
 
 def key_of(*parts) -> str:

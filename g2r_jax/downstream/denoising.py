@@ -637,13 +637,10 @@ def run_burst_check(burst, profile, cg_images=(), *, rows=ROWS, contents=CONTENT
 def _unit_keys(burst: Burst, cg, profile, **options):
     """key(*parts) of one stored outcome of the burst check (`downstream.cache`): the code, the
     burst's frames, the CG images, the profile and the options."""
-    import json
-
-    from g2r_jax.downstream.cache import code_digest, key_of
-    from g2r_jax.profile.schema import profile_to_dict
+    from g2r_jax.downstream.cache import code_digest, key_of, profile_text
 
     base = key_of(code_digest(), "burst check", burst.planes, burst.iso, list(burst.names), None if cg is None else cg,
-                  json.dumps(profile_to_dict(profile), sort_keys=True, default=str), sorted(options.items(), key=str))
+                  profile_text(profile), sorted(options.items(), key=str))
     return lambda *parts: key_of(base, *parts)
 
 

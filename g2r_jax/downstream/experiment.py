@@ -39,7 +39,6 @@ real_profile_light - real; the content model's gain is fitted_no_content - fitte
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -350,14 +349,12 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
 def _unit_keys(real: RealSet, profile, cg_linear, **options):
     """key(row, estimator, test, seed) of one training's stored estimates (`downstream.cache`):
     the code, the real images and labels, the CG images, the profile and the options."""
-    from g2r_jax.downstream.cache import code_digest, key_of
-    from g2r_jax.profile.schema import profile_to_dict
+    from g2r_jax.downstream.cache import code_digest, key_of, profile_text
 
-    profile_json = lambda p: json.dumps(profile_to_dict(p), sort_keys=True, default=str)
     other = options.pop("other")
-    base = key_of(code_digest(), "colour check", real.images, real.illuminants, list(cg_linear), profile_json(profile),
+    base = key_of(code_digest(), "colour check", real.images, real.illuminants, list(cg_linear), profile_text(profile),
                   sorted(options.items()),
-                  None if other is None else (other[0].images, other[0].illuminants, profile_json(other[1])))
+                  None if other is None else (other[0].images, other[0].illuminants, profile_text(other[1])))
     return lambda row, estimator, test, seed: key_of(base, row, estimator, np.asarray(test), seed)
 
 

@@ -358,13 +358,9 @@ def _real_pairs(real: RealSet, dngs, size: int, folds: int, masks=None):
 def _unit_keys(pairs, cg_linear, profile, shipped, **options):
     """key(row, test, seed) of one UNet's stored outcome (`downstream.cache`): the code, the real
     pairs (and masks), the CG images, the profiles and the options."""
-    import json
+    from g2r_jax.downstream.cache import code_digest, key_of, profile_text
 
-    from g2r_jax.downstream.cache import code_digest, key_of
-    from g2r_jax.profile.schema import profile_to_dict
-
-    profile_json = lambda p: json.dumps(profile_to_dict(p), sort_keys=True, default=str)
-    base = key_of(code_digest(), "isp task", list(pairs), list(cg_linear), profile_json(profile), profile_json(shipped),
+    base = key_of(code_digest(), "isp task", list(pairs), list(cg_linear), profile_text(profile), profile_text(shipped),
                   sorted(options.items()))
     return lambda row, test, seed: key_of(base, row, np.asarray(test), seed)
 
