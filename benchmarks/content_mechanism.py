@@ -54,6 +54,57 @@ def variant_views(name: str, views: np.ndarray) -> np.ndarray:
     return np.maximum(out, 0.0).astype(np.float32)
 
 
+def _luminance_tone(views, targets):
+    """Each view's luminance taken to the power p under its peak luminance, chroma kept
+    (x' = x (Y / P)^(p - 1)), p found by bisection so that mean Y / max channel of the 64 x 64
+    area average reaches `targets` (n,)."""
+    from g2r_jax.content.scene_statistics import LUMINANCE, SIZE, _area_average
+
+    small = _area_average(views.astype(np.float64), SIZE)
+    def brightness(p):
+        y = small @ LUMINANCE
+        peak_y = np.maximum(y.max(axis=(1, 2), keepdims=True), 1e-12)
+        out = small * (np.maximum(y, 1e-12) / peak_y)[..., None] ** (p[:, None, None, None] - 1)
+        return (out @ LUMINANCE).mean(axis=(1, 2)) / np.maximum(out.max(axis=(1, 2, 3)), 1e-12)
+    low, high = np.full(len(views), 0.25), np.full(len(views), 4.0)
+    for _ in range(24):
+        middle = 0.5 * (low + high)
+        darker = brightness(middle) > targets    # brightness falls as p rises
+        low, high = np.where(darker, middle, low), np.where(darker, high, middle)
+    p = 0.5 * (low + high)
+    y = views @ LUMINANCE.astype(np.float32)
+    peak_y = np.maximum(y.max(axis=(1, 2), keepdims=True), 1e-12)
+    return (views * (np.maximum(y, 1e-12) / peak_y)[..., None] ** (p[:, None, None, None] - 1)).astype(np.float32)
+
+
+def drawn_views(name, views, images, lights, profile, rng):
+    """Prototype of a distribution content model: 'draw' each view's cast taken to the cast of one
+    real file drawn at random; 'draw+tone' that file's brightness too (a luminance power, chroma
+    kept); 'cast+tone' the median cast and the median brightness."""
+    from g2r_jax import content
+    from g2r_jax.content.scene_statistics import LUMINANCE
+
+    stats = content.statistics(content.white_balanced_camera_rgb(images, lights))
+    ok = np.isfinite(stats.values["cast_red"]) & np.isfinite(stats.values["cast_blue"]) & np.isfinite(stats.values["brightness"])
+    red, blue, bright = (stats.values[k][ok] for k in ("cast_red", "cast_blue", "brightness"))
+    neutral = np.median(lights / lights[:, 1:2], axis=0)
+    to_camera = content.srgb_to_camera_matrices(neutral[None], profile.colour)[0]
+    if name.startswith("draw"):
+        pick = rng.integers(len(red), size=len(views))
+        red, blue, bright = red[pick], blue[pick], bright[pick]
+    else:
+        red, blue, bright = (np.full(len(views), np.median(v)) for v in (red, blue, bright))
+    in_camera = np.stack([np.exp(red), np.ones_like(red), np.exp(blue)], -1)
+    target = np.maximum(np.linalg.solve(to_camera[None], in_camera[..., None])[..., 0], 1e-3)
+    target = target / (target @ LUMINANCE)[:, None]
+    mean = np.maximum(views.astype(np.float64).mean(axis=(1, 2)), 1e-12)
+    gains = (mean @ LUMINANCE)[:, None] * target / mean
+    out = (views * gains[:, None, None, :].astype(np.float32))
+    if name.endswith("+tone"):
+        out = _luminance_tone(out, bright)
+    return np.maximum(out, 0.0).astype(np.float32)
+
+
 def run(cameras, variants, estimators, seed: int, n: int) -> dict:
     """{estimator/variant: {camera: [mean inner-third error per fold, degrees]}}."""
     from PIL import Image
@@ -64,7 +115,8 @@ def run(cameras, variants, estimators, seed: int, n: int) -> dict:
 
     linear = training_sets.linear_images([np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))])
     views = training_sets.cg_views(linear, n, seed)
-    adapted = {name: variant_views(name, views) for name in variants if name != "cast"}
+    adapted = {name: variant_views(name, views) for name in variants
+               if name not in ("cast", "scenes") and not name.startswith(("draw", "cast+tone"))}
     errors, start = {}, time.perf_counter()
     for camera in cameras:
         real = real_sets.load_nus(NUS / f"{camera}.npz")
@@ -74,9 +126,14 @@ def run(cameras, variants, estimators, seed: int, n: int) -> dict:
             train = np.setdiff1d(np.arange(len(real.images)), test)
             inner, validate = content_rows.inner_split(train, groups, seed, fold)
             fitted = experiment.fitted_illuminants(profile, real.illuminants[inner], "auto", seed)
-            if "cast" in variants:    # fitted to the inner two thirds, per fold
-                model = content_rows.candidate_model("cast", real.images[inner], real.illuminants[inner], views, profile)
-                adapted["cast"] = content_rows.adapted_views(model, views)
+            for fitted_family in {"cast", "scenes"} & set(variants):    # fitted to the inner two thirds, per fold
+                model = content_rows.candidate_model(fitted_family, real.images[inner], real.illuminants[inner], views,
+                                                     profile)
+                adapted[fitted_family] = content_rows.adapted_views(model, views, 50_000 + 100 * seed + fold)
+            for name in variants:
+                if name.startswith("draw") or name.startswith("cast+tone"):
+                    adapted[name] = drawn_views(name, views, real.images[inner], real.illuminants[inner], profile,
+                                                np.random.default_rng(50_000 + 100 * seed + fold))
             for name in variants:
                 images, labels = training_sets.g2r_set(adapted[name], fitted, 7_000 + 1000 * seed + fold)
                 for estimator in estimators:
@@ -104,14 +161,19 @@ def main(argv=None) -> int:
     parser.add_argument("--variants", default=VARIANTS)
     parser.add_argument("--estimators", default="moments,cnn")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seeds", type=int, default=1, help="seeds from --seed on, pooled")
     parser.add_argument("--n", type=int, default=200)
     args = parser.parse_args(argv)
     if not NUS.is_dir() or not CARLA.is_dir():
         print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
         return 2
     cameras, variants, estimators = (args.cameras.split(","), args.variants.split(","), args.estimators.split(","))
-    errors = run(cameras, variants, estimators, args.seed, args.n)
-    print("mean inner-third error (degrees, mean of the 3 folds; the test folds are not read)\n")
+    errors = {}
+    for seed in range(args.seed, args.seed + args.seeds):
+        for key, per_camera in run(cameras, variants, estimators, seed, args.n).items():
+            for camera, values in per_camera.items():
+                errors.setdefault(key, {}).setdefault(camera, []).extend(values)
+    print("mean inner-third error (degrees, mean of the 3 folds and the seeds; the test folds are not read)\n")
     print(table(errors, cameras, variants, estimators))
     return 0
 

@@ -56,8 +56,8 @@ def _row_sets(real, train, views, srgb_views, model, fitted, seed, fold):
     from g2r_jax.downstream import training_sets
     from g2r_jax.downstream.content_rows import adapted_views
 
-    adapted = adapted_views(model, views)
     salt = 1000 * seed + 10 * fold + 4
+    adapted = adapted_views(model, views, salt)
     return {"fitted": lambda: training_sets.g2r_set(views, fitted, salt),
             "fitted+content": lambda: training_sets.g2r_set(adapted, fitted, salt),
             "upi": lambda: training_sets.upi_set(srgb_views, seed + 1),
@@ -174,7 +174,8 @@ def fit_speed(count: int) -> str:
 def apply_speed(repeats: int = 5) -> str:
     """CPU time of one jitted `unprocess` of a 1000 x 1500 sRGB frame with the content model off,
     on as 'chroma' (folded into the colour matrix), 'chroma_tone' (a pass over the pixels with the
-    image's peak) and 'cast' (the image's mean, then a diagonal folded into the colour matrix),
+    image's peak), 'cast' (the image's mean, then a diagonal folded into the colour matrix) and
+    'scenes' (a power found on the image's grid, then a power and a gain per pixel),
     measured in turns (best of `repeats` per turn after a warm-up)."""
     import jax
 
@@ -185,7 +186,8 @@ def apply_speed(repeats: int = 5) -> str:
     base = g2r_jax.load_profile("Canon600D")
     variants = {"off": (base, False), "chroma": (replace(base, content=content_model(0.35)), True),
                 "chroma_tone": (replace(base, content=content_model(0.35, 1.3, family="chroma_tone")), True),
-                "cast": (replace(base, content=prior_cast_model(base.colour)), True)}
+                "cast": (replace(base, content=prior_cast_model(base.colour)), True),
+                "scenes": (replace(base, content=_speed_scenes_model()), True)}
     image = np.random.default_rng(0).integers(0, 256, (1000, 1500, 3)).astype(np.uint8)
     key = jax.random.PRNGKey(0)
     best = {}
@@ -200,7 +202,17 @@ def apply_speed(repeats: int = 5) -> str:
     off = best["off"]
     return (f"unprocess of a 1000 x 1500 frame, CPU time (best of {2 * repeats}): content off {1000 * off:.1f} ms, "
             + ", ".join(f"{name} {1000 * best[name]:.1f} ms ({100 * (best[name] / off - 1):+.1f} %)"
-                        for name in ("chroma", "chroma_tone", "cast")))
+                        for name in ("chroma", "chroma_tone", "cast", "scenes")))
+
+
+def _speed_scenes_model():
+    """A 'scenes' model of 64 invented scenes (its cost does not depend on their values)."""
+    from g2r_jax.content import content_model
+    from g2r_jax.content.scenes import TABLE_SIZE
+
+    rng = np.random.default_rng(0)
+    return content_model(family="scenes", scene_casts=rng.uniform(0.8, 1.2, (TABLE_SIZE, 3)),
+                         scene_brightness=rng.uniform(0.05, 0.3, TABLE_SIZE))
 
 
 def main(argv=None) -> int:

@@ -81,6 +81,9 @@ def _metadata(conditions, colour: str):
     return {k: conditions[k] for k in METADATA_KEYS + extra}
 
 
+CONTENT_STREAM = 47   # `jax.random.fold_in` salt of the content model's per-image draw
+
+
 def sample_conditions(key, profile, *, neutral=None, iso=None, exposure_gain=None, recipe: str = "dng",
                       colour: str = "matrix"):
     """Steps 2-4 of `unprocess` and its other per-image draws, without touching pixels.
@@ -110,10 +113,15 @@ def sample_conditions(key, profile, *, neutral=None, iso=None, exposure_gain=Non
         exposure_gain = _sensor.sample_exposure_gain(k_exposure, profile.exposure)
     iso = _sensor.sample_iso(k_iso, profile.noise) if iso is None else jnp.asarray(iso, dtype)
     shot, read = _sensor.noise_parameters(iso, profile.noise)
-    return {**colour_conditions, "iso": iso,
-            "exposure_gain": jnp.asarray(exposure_gain, dtype), "noise_shot": shot, "noise_read": read,
-            "noise_level": _sensor.noise_level_at(iso, profile.noise),
-            "gains": neutral / jnp.max(neutral), "noise_key": k_noise, "readout_key": k_readout}
+    conditions = {**colour_conditions, "iso": iso,
+                  "exposure_gain": jnp.asarray(exposure_gain, dtype), "noise_shot": shot, "noise_read": read,
+                  "noise_level": _sensor.noise_level_at(iso, profile.noise),
+                  "gains": neutral / jnp.max(neutral), "noise_key": k_noise, "readout_key": k_readout}
+    if getattr(getattr(profile, "content", None), "family", None) == "scenes":
+        # the scene the content model draws for this image, from its own stream: the other draws
+        # (and every conversion without this family) stay bit for bit as they were
+        conditions["content_draw"] = jax.random.uniform(jax.random.fold_in(key, CONTENT_STREAM), (), dtype)
+    return conditions
 
 
 def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: bool = True,
@@ -139,7 +147,7 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
     curve = "gamma2.2" if recipe == "published" else transfer
     linear = decode(image, curve)
     grid = lambda: decode(_content.mean_grid(image), curve)
-    scene = adapted_scene(linear, profile, content, grid) if return_scene else None
+    scene = adapted_scene(linear, profile, content, grid, conditions.get("content_draw")) if return_scene else None
     linear, conditions = content_stage(linear, conditions, profile, content, colour, grid=grid)
 
     # 5. Un-white-balance and mosaic in one step, scaled so that white reaches 1 in the
@@ -190,6 +198,16 @@ def _active_content(profile, content: bool | None):
     return model
 
 
+def _content_pixels(model, linear, grid, draw):
+    """The model on the pixels (a non-linear family); 'scenes' takes its draw and grid."""
+    if model.family == "scenes":
+        if draw is None:
+            raise ValueError("the content model 'scenes' needs the image's draw: conditions from `sample_conditions` "
+                             "with this profile")
+        return _content.apply(model, linear, draw, None if grid is None else grid())
+    return _content.apply(model, linear)
+
+
 def _content_matrix(model, linear, grid):
     """The model as a 3x3 on linear sRGB (None for a non-linear family); the 'cast' family's
     gains come from `grid()` when given (the image's `content.mean_grid`, decoded on its own)."""
@@ -210,11 +228,11 @@ def content_stage(linear, conditions, profile, content: bool | None, colour: str
         return linear, conditions
     matrix = _content_matrix(model, linear, grid)
     if matrix is None or colour not in MATRIX_ON_LINEAR:
-        return _content.apply(model, linear), conditions
+        return _content_pixels(model, linear, grid, conditions.get("content_draw")), conditions
     return linear, {**conditions, "srgb_to_wb_camera": conditions["srgb_to_wb_camera"] @ matrix}
 
 
-def adapted_scene(linear, profile, content: bool | None = None, grid=None):
+def adapted_scene(linear, profile, content: bool | None = None, grid=None, draw=None):
     """The scene as the camera model sees it: linear sRGB (H, W, 3) after the content model
     that `content_stage` applies (the same model, the same matrix), or `linear` itself when none
     applies. An ISP's consistent target: the mosaic is this scene times the colour stage's
@@ -223,7 +241,9 @@ def adapted_scene(linear, profile, content: bool | None = None, grid=None):
     if model is None:
         return linear
     matrix = _content_matrix(model, linear, grid)
-    return _content.apply(model, linear) if matrix is None else jnp.einsum("ij,...j->...i", matrix, linear)
+    if matrix is None:
+        return _content_pixels(model, linear, grid, draw)
+    return jnp.einsum("ij,...j->...i", matrix, linear)
 
 
 def without_content(profile):

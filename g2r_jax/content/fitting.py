@@ -24,6 +24,7 @@ import numpy as np
 
 from g2r_jax.content import prior as _prior
 from g2r_jax.content.model import CAST_KEPT, FAMILIES, ContentModel, apply, content_model, identity
+from g2r_jax.content.scene_statistics import LUMINANCE as _LUMINANCE
 from g2r_jax.content.scene_statistics import SIZE, ContentStatistics, _area_average, statistics
 
 _MEDIANS = ("chroma_spread", "brightness")
@@ -105,6 +106,8 @@ def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str =
         return identity()
     if family == "cast":
         return _cast_model(real_statistics, to_camera)
+    if family == "scenes":
+        return scenes_model(real_statistics, to_camera)
     real, real_source = _medians(real_statistics, _prior.REAL_SCENES, "real images")
     if cg_sample is not None:
         scale, power = _parameters_from_sample(real, cg_sample, to_camera, family)
@@ -170,3 +173,37 @@ def prior_cast_model(colour_model, real_medians: dict | None = None, source: str
 
     neutral = np.asarray(xy_to_camera_neutral(jnp.asarray([0.3127, 0.3290]), colour_model), np.float64)
     return _cast_model(real_medians, srgb_to_camera_matrices(neutral[None], colour_model)[0], source or "given medians")
+
+
+def scenes_model(real_statistics, to_camera, what: str = "real images") -> ContentModel:
+    """'scenes' (`g2r_jax.content.scenes`): a table of the files' own scenes, each its grey-world
+    cast and its brightness, the casts re-centred on the median shrunk toward the prior's
+    (`_toward_the_prior`), carried to linear sRGB like 'cast' (a target outside the sRGB gamut at
+    this light is floored at 1e-3 of its luminance); the 'cast' model when fewer than
+    `scenes.MIN_FILES` files have a finite cast and brightness (a few scenes are not the camera's
+    distribution), or when `real_statistics` is not per-file statistics."""
+    from g2r_jax.content.scenes import MIN_FILES, table_rows
+
+    if not isinstance(real_statistics, ContentStatistics):
+        return _cast_model(real_statistics, to_camera, what)
+    values = real_statistics.values
+    usable = np.isfinite(values["cast_red"]) & np.isfinite(values["cast_blue"]) & (values["brightness"] > 0)
+    if usable.sum() < MIN_FILES:
+        return _cast_model(real_statistics, to_camera, what)
+    cast = _cast_model(real_statistics, to_camera, what)
+    red, blue, brightness = (np.asarray(values[k], np.float64)[usable] for k in ("cast_red", "cast_blue", "brightness"))
+    centre = dict(cast.target)
+    red = red - np.median(red) + centre["cast_red"]
+    blue = blue - np.median(blue) + centre["cast_blue"]
+    rows = table_rows(len(red))
+    in_camera = np.stack([np.exp(red[rows]), np.ones(len(rows)), np.exp(blue[rows])], -1)
+    to_camera = np.eye(3) if to_camera is None else np.asarray(to_camera, np.float64)
+    targets = np.linalg.solve(to_camera, in_camera.T).T
+    luminance = targets @ _LUMINANCE
+    if not np.all(luminance > 0):
+        raise ValueError("cannot fit the scenes model: a real scene's cast has no positive luminance at this light")
+    targets = np.maximum(targets, 1e-3 * luminance[:, None])
+    source = real_statistics.source or what
+    return content_model(family="scenes", scene_casts=targets, scene_brightness=np.clip(brightness[rows], 1e-3, 1.0),
+                         source=f"{source}: each CG frame's cast and brightness those of one of its {len(red)} scenes",
+                         target={**centre, "brightness": float(np.median(brightness)), "files": float(len(red))})

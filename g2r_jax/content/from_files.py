@@ -61,7 +61,7 @@ def content_model_from_files(files, read: Callable, *, on_error: Optional[Callab
         return None, 0
     real = statistics(white_balanced_camera_rgb(np.stack(thumbnails), np.stack(neutrals)),
                       source=f"{len(thumbnails)} DNG file(s)")
-    statistic = "cast_red" if family == "cast" else "chroma_spread"
+    statistic = "cast_red" if family in ("cast", "scenes") else "chroma_spread"
     if not np.isfinite(real.values[statistic]).any():
         return None, 0
     to_camera = None

@@ -22,6 +22,7 @@ camera sees it) that brings its content statistics toward those of the camera's 
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -35,6 +36,7 @@ FAMILIES = {
     "chroma": "chroma scaled toward luminance (s from the chroma spread)",
     "chroma_tone": "chroma scaled toward luminance, then a power on the brightness under the peak",
     "cast": "each image's grey-world cast moved to the real scenes' (c = 0: all the way)",
+    "scenes": "each image's cast and brightness taken to those of one of the camera's scenes, drawn per image",
 }
 # The measurement's choice of c for 'cast' (finding 3 of the validation page: c = 0 trained the
 # CNN better than 0.35 on the training folds' inner third): the CG frame's own cast all replaced.
@@ -53,13 +55,17 @@ class ContentModel(eqx.Module):
     source: str = eqx.field(static=True, default="")
     target: tuple = eqx.field(static=True, default=())   # ((statistic, real median), ...) it was fitted to
     apply_by_default: bool = eqx.field(static=True, default=False)   # conversion applies it unless told not to
+    scene_casts: Any = None          # 'scenes': (K, 3) target colours, linear sRGB, luminance 1
+    scene_brightness: Any = None     # 'scenes': (K,) target brightness (mean Y over the largest channel)
 
 
 def content_model(chroma_scale: float = 1.0, tone_power: float = 1.0, *, cast_scale: float = 1.0,
                   cast_target=(1.0, 1.0, 1.0), family: str = "chroma", source: str = "",
-                  target: dict | None = None, apply_by_default: bool = False) -> ContentModel:
+                  target: dict | None = None, apply_by_default: bool = False, scene_casts=None,
+                  scene_brightness=None) -> ContentModel:
     """A `ContentModel` from its parameters (checked: s and c in [0, 1], p in [0.25, 4], t three
-    positive numbers, scaled here to luminance 1)."""
+    positive numbers, scaled here to luminance 1; family 'scenes': `scene_casts` (K, 3) positive
+    colours, each scaled to luminance 1, and `scene_brightness` (K,) in (0, 1], `scenes`)."""
     if family not in FAMILIES:
         raise ValueError(f"unknown content family {family!r}; expected one of {', '.join(FAMILIES)}")
     if not (np.isfinite(chroma_scale) and 0.0 <= chroma_scale <= 1.0):
@@ -72,11 +78,32 @@ def content_model(chroma_scale: float = 1.0, tone_power: float = 1.0, *, cast_sc
     if cast_target.shape != (3,) or not (np.all(np.isfinite(cast_target)) and np.all(cast_target > 0)):
         raise ValueError(f"content cast_target {cast_target.tolist()!r} must be three positive numbers (linear sRGB)")
     cast_target = cast_target / float(cast_target @ LUMINANCE)
+    scene_casts, scene_brightness = _scene_table(family, scene_casts, scene_brightness)
     return ContentModel(chroma_scale=jnp.float32(chroma_scale), tone_power=jnp.float32(tone_power),
                         cast_scale=jnp.float32(cast_scale), cast_target=jnp.asarray(cast_target, jnp.float32),
                         family=family,
                         source=source, target=tuple(sorted((target or {}).items())),
-                        apply_by_default=bool(apply_by_default))
+                        apply_by_default=bool(apply_by_default), scene_casts=scene_casts,
+                        scene_brightness=scene_brightness)
+
+
+def _scene_table(family: str, casts, brightness):
+    """The checked 'scenes' table as float32 arrays (None, None for the other families)."""
+    if family != "scenes":
+        if casts is not None or brightness is not None:
+            raise ValueError(f"a scenes table is for family 'scenes', not {family!r}")
+        return None, None
+    casts = np.asarray(casts, np.float64)
+    brightness = np.asarray(brightness, np.float64).reshape(-1)
+    if casts.ndim != 2 or casts.shape[1] != 3 or len(casts) == 0 or len(brightness) != len(casts):
+        raise ValueError(f"content scene_casts (K, 3) and scene_brightness (K,) must match, got "
+                         f"{casts.shape} and {brightness.shape}")
+    if not (np.all(np.isfinite(casts)) and np.all(casts > 0)):
+        raise ValueError("content scene_casts must be positive numbers (linear sRGB colours)")
+    if not (np.all(np.isfinite(brightness)) and np.all((brightness > 0) & (brightness <= 1))):
+        raise ValueError("content scene_brightness must be in (0, 1]")
+    casts = casts / (casts @ LUMINANCE)[:, None]
+    return jnp.asarray(casts, jnp.float32), jnp.asarray(brightness, jnp.float32)
 
 
 def identity() -> ContentModel:
@@ -86,6 +113,10 @@ def identity() -> ContentModel:
 
 def describe(model: ContentModel) -> str:
     """One line naming the family and the parameters it uses, for the commands' messages."""
+    if model.family == "scenes":
+        brightness = np.asarray(model.scene_brightness)
+        return (f"scenes, each frame's cast and brightness those of one of {len(brightness)} scenes drawn at random "
+                f"(brightness {np.min(brightness):.2f}-{np.max(brightness):.2f}, median {np.median(brightness):.2f})")
     if model.family == "cast":
         r, g, b = (float(v) for v in model.cast_target)
         return (f"cast, each frame's mean colour taken {1 - float(model.cast_scale):.0%} of the way to "
@@ -107,7 +138,7 @@ def as_matrix(model: ContentModel, linear=None) -> Float[Array, "3 3"] | None:
     gains unchanged (they depend on the ratios of the channel means only). A colour stage that is
     itself a matrix on linear sRGB takes M A in place of M, so the model costs no pass over the
     pixels (`pipeline.content_stage`)."""
-    if model.family == "chroma_tone":
+    if model.family in ("chroma_tone", "scenes"):
         return None
     if model.family == "cast":
         if linear is None:
@@ -120,16 +151,26 @@ def as_matrix(model: ContentModel, linear=None) -> Float[Array, "3 3"] | None:
     return s * jnp.eye(3, dtype=jnp.float32) + (1.0 - s) * jnp.ones((3, 1), jnp.float32) * weights[None, :]
 
 
-def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"]) -> Float[Array, "*batch H W 3"]:
+def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"], draw=None,
+          grid=None) -> Float[Array, "*batch H W 3"]:
     """The content transform of one image (H, W, 3) or a batch (..., H, W, 3) in linear sRGB
     (values >= 0). The identity model (and s = 1, p = 1) returns its input bit for bit; 'chroma'
     is one element-wise pass; 'chroma_tone' computes each image's peak and the power; 'cast' each
-    image's mean colour and a gain per channel.
+    image's mean colour and a gain per channel; 'scenes' (`scenes`) needs `draw` (...,), each
+    image's uniform draw in [0, 1) that picks its scene, and takes its parameters from `grid`
+    (the images' `mean_grid`, decoded apart by the pipeline; default: taken from `linear`).
 
     **Returns:** float32, same shape, >= 0, each image's peak unchanged by the tone power."""
     x = jnp.asarray(linear, jnp.float32)
     if model.family == "identity":
         return x
+    if model.family == "scenes":
+        if draw is None:
+            raise ValueError("the 'scenes' content family draws a scene per image: pass draw, uniform in [0, 1)")
+        from g2r_jax.content.scenes import apply_scenes
+
+        grid = mean_grid(x) if grid is None else jnp.asarray(grid, jnp.float32)
+        return apply_scenes(model, x, draw, grid, _gains_toward)
     if model.family == "cast":
         return x * _cast_gains(x, model)
     luminance = _luminance(x)
@@ -194,14 +235,20 @@ def _exact_luminance(sums):
     return (high.astype(jnp.float32) * 2.0 ** 15 + low.astype(jnp.float32)) * 2.0 ** -15
 
 
-def _cast_gains(x, model: ContentModel):
-    """(Y_m t_k / m_k)^(1 - c) per image (`_image_mean`, `_exact_luminance`), shaped to multiply
-    `x`; a channel whose mean is 0 keeps its gain 1. After the exact sums, one product and one
-    quotient per channel: nothing whose rounding depends on how the program was compiled."""
+def _gains_toward(x, target):
+    """Y_m t_k / m_k per image (`_image_mean`, `_exact_luminance`) for targets t (..., 3) of
+    images x (..., H, W, 3), shaped (..., 1, 1, 3) to multiply `x`; a channel whose mean is 0 keeps
+    its gain 1. After the exact sums, one product and one quotient per channel: nothing whose
+    rounding depends on how the program was compiled."""
     sums = _image_mean(x)
     mean = sums.astype(jnp.float32)
-    wanted = _exact_luminance(sums) * jnp.asarray(model.cast_target, jnp.float32)
-    ratio = jnp.where(mean > 0, wanted / jnp.where(mean > 0, mean, 1.0), 1.0)
+    wanted = _exact_luminance(sums) * jnp.asarray(target, jnp.float32)[..., None, None, :]
+    return jnp.where(mean > 0, wanted / jnp.where(mean > 0, mean, 1.0), 1.0)
+
+
+def _cast_gains(x, model: ContentModel):
+    """(Y_m t_k / m_k)^(1 - c) per image (`_gains_toward`), shaped to multiply `x`."""
+    ratio = _gains_toward(x, model.cast_target)
     kept = jnp.asarray(model.cast_scale, jnp.float32)
     # c = 0 (the default) takes the ratio itself: a power's last bit can differ between a program
     # vectorised over a batch and one of a single image.

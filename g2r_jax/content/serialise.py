@@ -13,9 +13,12 @@ from __future__ import annotations
 import math
 from typing import Callable
 
+import numpy as np
+
 from g2r_jax.content.model import FAMILIES, ContentModel, content_model
 
-_KEYS = {"family", "chroma_scale", "tone_power", "cast_scale", "cast_target", "apply_by_default", "target", "source"}
+_KEYS = {"family", "chroma_scale", "tone_power", "cast_scale", "cast_target", "apply_by_default", "target", "source",
+         "scene_casts", "scene_brightness"}
 
 
 def content_to_dict(model: ContentModel) -> dict:
@@ -23,7 +26,10 @@ def content_to_dict(model: ContentModel) -> dict:
     return {"family": model.family, "chroma_scale": float(model.chroma_scale), "tone_power": float(model.tone_power),
             "cast_scale": float(model.cast_scale), "cast_target": [float(v) for v in model.cast_target],
             "apply_by_default": bool(model.apply_by_default), "target": {k: float(v) for k, v in model.target},
-            "source": model.source}
+            "source": model.source,
+            **({} if model.family != "scenes" else {
+                "scene_casts": [[round(float(v), 6) for v in row] for row in np.asarray(model.scene_casts)],
+                "scene_brightness": [round(float(v), 6) for v in np.asarray(model.scene_brightness)]})}
 
 
 def _raise(where: str, problem: str):
@@ -61,9 +67,25 @@ def content_from_dict(document, fail: Callable[[str, str], None] = _raise) -> Co
     by_default = document.get("apply_by_default", False)
     if not isinstance(by_default, bool):
         fail("content.apply_by_default", f"expected true or false, got {by_default!r}")
+    table = _scene_table(document, family, fail)
     try:
         model = content_model(scale, power, cast_scale=cast, cast_target=cast_target, family=family, source=str(document.get("source", "")),
-                              target={str(k): float(v) for k, v in target.items()}, apply_by_default=by_default)
+                              target={str(k): float(v) for k, v in target.items()}, apply_by_default=by_default,
+                              **table)
     except ValueError as error:
         fail("content", str(error))
     return model
+
+
+def _scene_table(document: dict, family: str, fail) -> dict:
+    """The 'scenes' family's table, checked for shape and numbers ({} for the other families)."""
+    if family != "scenes":
+        return {}
+    casts, brightness = document.get("scene_casts"), document.get("scene_brightness")
+    if not (isinstance(casts, list) and casts and all(isinstance(row, list) and len(row) == 3 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in row) for row in casts)):
+        fail("content.scene_casts", "expected a list of [r, g, b] colours (the scenes' casts, linear sRGB)")
+    if not (isinstance(brightness, list) and len(brightness) == len(casts) and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in brightness)):
+        fail("content.scene_brightness", f"expected {len(casts)} numbers (one per scene in scene_casts)")
+    return {"scene_casts": casts, "scene_brightness": brightness}

@@ -52,16 +52,20 @@ class FoldChoice:
     errors: dict
 
 
-def adapted_views(model, views: np.ndarray) -> np.ndarray:
+def adapted_views(model, views: np.ndarray, seed: int = 0) -> np.ndarray:
     """Linear sRGB views (n, H, W, 3) through the content model (`g2r_jax.content.apply`, jit),
-    in chunks of `_APPLY_CHUNK`."""
+    in chunks of `_APPLY_CHUNK`; the 'scenes' family draws each view's scene from `seed`."""
     import dataclasses
 
     # The model's description (source, target) is static in its pytree: without it, one compiled
     # program serves every fold's model.
     model = dataclasses.replace(model, source="", target=())
     views = np.asarray(views, np.float32)
-    return np.concatenate([np.asarray(_jitted_apply()(model, views[i:i + _APPLY_CHUNK]))
+    draws = np.random.default_rng(seed).uniform(size=len(views)).astype(np.float32)
+    if model.family != "scenes":
+        draws = [None] * len(views)
+    return np.concatenate([np.asarray(_jitted_apply()(model, views[i:i + _APPLY_CHUNK],
+                                                      None if draws[0] is None else draws[i:i + _APPLY_CHUNK]))
                            for i in range(0, len(views), _APPLY_CHUNK)])
 
 
@@ -131,7 +135,8 @@ def select_candidate(candidates, real, train: np.ndarray, views: np.ndarray, pro
     errors = {}
     for name in candidates:
         model = candidate_model(name, real.images[inner_train], lights, views, profile)
-        images, labels = training_sets.g2r_set(adapted_views(model, views), fitted, 7_000 + 1000 * seed + fold)
+        images, labels = training_sets.g2r_set(adapted_views(model, views, 7_000 + 1000 * seed + fold), fitted,
+                                                 7_000 + 1000 * seed + fold)
         predict = train_estimator(estimator, images, labels, seed=1000 * seed + fold)
         errors[name] = float(np.mean(angular_error_degrees(predict(real.images[validate]),
                                                            real.illuminants[validate])))
@@ -184,7 +189,7 @@ def _adapted(sets, train, fold, seed):
     cached = sets.cache.get(("content_views",))
     if cached is None or cached[0] != key:
         model = fold_choice(sets, train, fold, seed).model
-        sets.cache[("content_views",)] = (key, adapted_views(model, sets.views(seed)))
+        sets.cache[("content_views",)] = (key, adapted_views(model, sets.views(seed), 1000 * seed + 10 * fold + 5))
     return sets.cache[("content_views",)][1]
 
 
@@ -223,7 +228,7 @@ def one_file_row(sets, profile, index: int, salt: int, seed: int):
         except ValueError as error:
             _note(sets, f"one-DNG row, seed {seed}: no content model from file {index} ({error})")
             return training_sets.g2r_set(sets.views(seed), profile, salt)
-    return training_sets.g2r_set(adapted_views(model, sets.views(seed)), without_content(profile), salt)
+    return training_sets.g2r_set(adapted_views(model, sets.views(seed), salt), without_content(profile), salt)
 
 
 def upi_content_row(sets, train: np.ndarray, fold: int, seed: int):

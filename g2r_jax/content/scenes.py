@@ -1,0 +1,108 @@
+"""The 'scenes' content family (issue 47): each CG frame takes the grey-world cast *and* the
+brightness of one of the camera's own scenes, drawn at random per frame, so that the adapted
+frames spread over the camera's scenes as its files do, rather than all sharing one mean cast.
+
+The model holds a table of K scenes (`TABLE_SIZE`), each a target colour t_k (linear sRGB,
+luminance 1: the scene's grey-world cast, `scene_statistics`, carried from the camera's
+white-balanced RGB by the inverse of the profile's sRGB -> white-balanced camera matrix) and a
+target brightness b_k (mean luminance over the largest channel value). For a frame with draw
+u in [0, 1), k = floor(u K):
+
+1. brightness: a power on the luminance under the frame's peak luminance P, each pixel's chroma
+   kept: x1 = x (Y / P)^(p - 1), so Y1 = P (Y / P)^p; p in [1/4, 4] found by bisection on the
+   frame's mean grid (`model.mean_grid`) so that its brightness reaches b_k (it falls as p rises).
+   A power on each channel instead (`chroma_tone`) also multiplies every log-chroma by p;
+2. cast, as the 'cast' family (`model._gains_toward`): x2_c = x1_c Y_m t_k,c / m_c, m the toned
+   frame's mean colour (von Kries gains; Buchsbaum's grey world, J. Franklin Inst. 1980): its
+   grey-world cast is then the scene's exactly (p is found with these gains applied, so that the
+   brightness is the scene's too).
+
+Both parameters come from the grid, the pixels then take one gain and one power each (the
+pipeline fuses them into its element-wise pass). Fitted from DNGs alone (`fitting.scenes_model`):
+the table holds the files' own (cast, brightness) pairs, their casts re-centred on the median
+shrunk to the prior's (as 'cast' is); with fewer than `MIN_FILES` files the 'cast' family is fitted
+instead (a few scenes are not the camera's distribution). Measurement:
+docs/pages/validation/content_model.md, finding 4.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from g2r_jax.content.scene_statistics import LUMINANCE
+
+TABLE_SIZE = 64
+MIN_FILES = 20
+POWER_RANGE = (0.25, 4.0)
+_BISECTION_STEPS = 20
+_FLOOR = 1e-6   # relative luminance floor under the power (a black pixel stays black: x1 = 0)
+
+
+def table_rows(n: int, size: int = TABLE_SIZE) -> np.ndarray:
+    """Which of n files fill the table's `size` rows: evenly spaced over the files when there are
+    more, each file in turn when fewer (a fixed shape, so one compiled program serves any folder)."""
+    if n < 1:
+        raise ValueError("no file to fill the scenes table")
+    return np.round(np.linspace(0, n - 1, size)).astype(int) if n >= size else np.arange(size) % n
+
+
+def _luminance(x):
+    w = [float(v) for v in LUMINANCE]
+    return w[0] * x[..., 0] + w[1] * x[..., 1] + w[2] * x[..., 2]
+
+
+def _toned(image, peak, power):
+    """x (Y / P)^(p - 1) for images (..., H, W, 3), peaks P and powers p shaped (..., 1, 1, 1)."""
+    return image * jnp.power(jnp.maximum(_luminance(image)[..., None] / peak, _FLOOR), power - 1.0)
+
+
+def _peak_luminance(grid):
+    peak = jnp.max(_luminance(grid), axis=(-2, -1))
+    return jnp.where(peak > 0, peak, 1.0)[..., None, None, None]
+
+
+def _brightness(grid):
+    """Mean Y over the largest channel value of grids (..., h, w, 3) -> (...,)."""
+    top = jnp.max(grid, axis=(-3, -2, -1))
+    return jnp.mean(_luminance(grid), axis=(-2, -1)) / jnp.where(top > 0, top, 1.0)
+
+
+def tone_power(grid, brightness, finish=lambda toned: toned):
+    """The power p (...,) that takes the brightness of `finish(toned grid)` to `brightness` (...,),
+    by bisection in log p over `POWER_RANGE` (an end when out of reach)."""
+    peak = _peak_luminance(grid)
+    low = jnp.full(jnp.shape(brightness), np.log(POWER_RANGE[0]), jnp.float32)
+    high = jnp.full(jnp.shape(brightness), np.log(POWER_RANGE[1]), jnp.float32)
+
+    def step(_, bounds):
+        low, high = bounds
+        middle = 0.5 * (low + high)
+        reached = _brightness(finish(_toned(grid, peak, jnp.exp(middle)[..., None, None, None])))
+        too_bright = reached > brightness
+        return jnp.where(too_bright, middle, low), jnp.where(too_bright, high, middle)
+
+    low, high = jax.lax.fori_loop(0, _BISECTION_STEPS, step, (low, high))
+    return jnp.exp(0.5 * (low + high))
+
+
+def drawn_row(model, draw):
+    """The table row of draw u in [0, 1): floor(u K), clipped to the table."""
+    size = model.scene_brightness.shape[-1]
+    return jnp.clip(jnp.floor(jnp.asarray(draw, jnp.float32) * size).astype(jnp.int32), 0, size - 1)
+
+
+def apply_scenes(model, x, draw, grid, cast_gains):
+    """The 'scenes' transform of images x (..., H, W, 3) with draws (...,) and their mean grids
+    (`grid`, the same images' `model.mean_grid`); `cast_gains(grid, target)` gives the 'cast'
+    family's gains (..., 1, 1, 3) toward targets (..., 3). The power first, then the gains, so
+    that each frame's grey-world cast is its scene's exactly; the power is found with the gains
+    applied, so that its brightness is the scene's too."""
+    row = drawn_row(model, draw)
+    target = jnp.asarray(model.scene_casts, jnp.float32)[row]
+    power = tone_power(grid, jnp.asarray(model.scene_brightness, jnp.float32)[row],
+                       lambda toned: toned * cast_gains(toned, target))[..., None, None, None]
+    peak = _peak_luminance(grid)
+    gains = cast_gains(_toned(grid, peak, power), target)
+    return _toned(x, peak, power) * gains

@@ -1,0 +1,115 @@
+"""The 'scenes' content family (issue 47): each CG frame takes the cast and the brightness of one
+of the camera's scenes, drawn per frame."""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+import pytest
+
+import g2r_jax
+from g2r_jax import content
+from g2r_jax.content import scenes
+from g2r_jax.content.scene_statistics import LUMINANCE, ContentStatistics, statistics
+from g2r_jax.pipeline import without_content
+from g2r_jax.profile.schema import profile_from_dict, profile_to_dict, replace
+
+
+def _real_statistics(n: int, seed: int = 0) -> ContentStatistics:
+    rng = np.random.default_rng(seed)
+    values = {name: rng.uniform(0.1, 0.3, n) for name in content.NAMES}
+    values["cast_red"] = rng.normal(0.05, 0.15, n)
+    values["cast_blue"] = rng.normal(-0.08, 0.15, n)
+    values["brightness"] = rng.uniform(0.05, 0.4, n)
+    return ContentStatistics(values=values, source="test files")
+
+
+def _model(n: int = 40):
+    return content.fit_content_model(_real_statistics(n), family="scenes")
+
+
+def _frames(n: int = 3):
+    """Blocky frames (8 x 8 blocks), so that a 64 x 64 area average keeps their peak like a CG
+    frame's smooth surfaces do."""
+    rng = np.random.default_rng(4)
+    blocks = rng.uniform(0.0, 1.0, (n, 12, 16, 3)) ** 2 * np.float32([0.8, 1.0, 1.3])
+    return np.kron(blocks, np.ones((1, 8, 8, 1))).astype(np.float32)
+
+
+def test_fit_holds_the_files_scenes_and_falls_back_to_cast_below_the_minimum():
+    model = _model(40)
+    assert model.family == "scenes" and np.asarray(model.scene_casts).shape == (scenes.TABLE_SIZE, 3)
+    assert np.allclose(np.asarray(model.scene_casts) @ LUMINANCE, 1.0, atol=1e-5)
+    real = _real_statistics(40)
+    held = np.asarray(model.scene_brightness)
+    assert np.all(np.min(np.abs(held[:, None] - real.values["brightness"][None]), axis=1) < 1e-6)
+    assert content.fit_content_model(_real_statistics(scenes.MIN_FILES - 1), family="scenes").family == "cast"
+
+
+def test_each_frame_takes_its_drawn_scenes_cast_and_brightness():
+    model = _model()
+    frames = _frames()
+    draws = np.float32([0.0, 0.5, 0.999])
+    adapted = np.asarray(content.apply(model, frames, draws))
+    rows = np.asarray(scenes.drawn_row(model, draws))
+    assert rows.tolist() == [0, scenes.TABLE_SIZE // 2, scenes.TABLE_SIZE - 1]
+    for image, row in zip(adapted, rows):
+        mean = image.mean(axis=(0, 1))
+        target = np.asarray(model.scene_casts)[row]
+        grid = np.asarray(content.mean_grid(image))
+        brightness = (grid @ LUMINANCE).mean() / grid.max()
+        assert np.allclose(grid.mean(axis=(0, 1)) / (grid.mean(axis=(0, 1)) @ LUMINANCE), target, rtol=1e-4)
+        assert brightness == pytest.approx(float(np.asarray(model.scene_brightness)[row]), rel=0.1)
+        assert mean.min() > 0
+    # the power keeps each pixel's chroma: a gain per channel apart, the ratios of the channels are the input's
+    ratio = adapted[0] / np.maximum(frames[0], 1e-12)
+    lit = (frames[0] @ LUMINANCE) > 0.05
+    per_channel = ratio[lit] / ratio[lit][:, 1:2]
+    assert np.allclose(per_channel, np.median(per_channel, axis=0), rtol=1e-3)
+
+
+def test_the_scenes_family_needs_a_draw_and_round_trips_through_the_profile(tmp_path):
+    model = content.with_default(_model(), True)
+    with pytest.raises(ValueError, match="draw"):
+        content.apply(model, _frames(1)[0])
+    profile = replace(without_content(g2r_jax.load_profile("Canon600D")), content=model)
+    back = profile_from_dict(profile_to_dict(profile)).content
+    assert back.family == "scenes" and back.apply_by_default
+    assert np.allclose(np.asarray(back.scene_casts), np.asarray(model.scene_casts), atol=1e-5)
+    document = profile_to_dict(profile)
+    document["content"]["scene_brightness"] = document["content"]["scene_brightness"][:-1]
+    with pytest.raises(ValueError, match="scene_brightness"):
+        profile_from_dict(document)
+
+
+def test_unprocess_draws_a_scene_per_image_and_leaves_the_other_draws_alone():
+    plain_profile = without_content(g2r_jax.load_profile("Canon600D"))
+    profile = replace(plain_profile, content=content.with_default(_model(), True))
+    image = (np.asarray(_frames(1)[0]) ** (1 / 2.2) * 255).astype(np.uint8)
+    keys = jax.random.split(jax.random.PRNGKey(7), 4)
+    mosaics, metadata = g2r_jax.unprocess_batch(keys, np.stack([image] * 4), profile)
+    plain, plain_metadata = g2r_jax.unprocess_batch(keys, np.stack([image] * 4), plain_profile)
+    assert np.allclose(np.asarray(metadata["neutral"]), np.asarray(plain_metadata["neutral"]))
+    one, _ = g2r_jax.unprocess(keys[1], image, profile)
+    assert np.array_equal(np.asarray(one), np.asarray(mosaics[1]))
+    means = np.asarray(mosaics, np.float64).mean(axis=(1, 2))
+    assert len(np.unique(np.round(means, 3))) == 4       # four draws, four scenes
+    _, scene, _ = g2r_jax.unprocess(keys[1], image, profile, return_scene=True, noise=False)
+    draw = jax.random.uniform(jax.random.fold_in(keys[1], g2r_jax.pipeline.CONTENT_STREAM), ())
+    linear = np.asarray(g2r_jax.pipeline.decode(image, "srgb"))
+    grid = np.asarray(g2r_jax.pipeline.decode(np.asarray(content.mean_grid(image)), "srgb"))
+    assert np.allclose(np.asarray(scene), np.asarray(content.apply(profile.content, linear, draw, grid)), atol=1e-6)
+
+
+def test_real_scenes_statistics_are_reached_by_frames():
+    """The adapted frames' brightness, as the check measures it, is the drawn scene's where the
+    power can reach it (these very colourful frames cannot be brightened past about 0.24 within
+    p >= 1/4), and spreads like the table's rather than around one value."""
+    model = _model()
+    frames = np.repeat(_frames(1), 16, axis=0)
+    draws = np.linspace(0.0, 0.99, 16).astype(np.float32)
+    adapted = np.asarray(content.apply(model, frames, draws))
+    measured = statistics(adapted).values["brightness"]
+    wanted = np.asarray(model.scene_brightness)[np.asarray(scenes.drawn_row(model, draws))]
+    assert np.sum(np.abs(measured / wanted - 1) < 0.03) >= 10
+    assert np.std(measured) > 0.05
