@@ -13,6 +13,11 @@ inner third (`g2r_jax.downstream.content_rows.inner_split`: the test fold is not
 
     python benchmarks/content_mechanism.py [--cameras Canon600D,NikonD40,SonyA57] [--seed 0] [--n 200]
         [--estimators moments,cnn] [--variants identity,chroma@0.35,cast@0.35,cast@0,chroma@0.35+cast,cast]
+        [--seeds 1] [--files N] [--scenes-min-files K]
+
+Issue 47's variants: `scenes` (the family, fitted per fold like `cast`); the prototypes it came
+from, `draw` (each view's cast that of one inner file drawn at random), `cast+tone` (the median
+cast and the median brightness, a luminance power) and `draw+tone` (one file's cast and brightness).
 
 Data: ../shared/data/estimation/nus/<camera>.npz and ../shared/data/cg/carla/*.png.
 """
@@ -77,6 +82,31 @@ def _luminance_tone(views, targets):
     return (views * (np.maximum(y, 1e-12) / peak_y)[..., None] ** (p[:, None, None, None] - 1)).astype(np.float32)
 
 
+def _highlight_tone(views, targets, knee: float = 0.5):
+    """Each view's luminance above `knee` of its peak raised to a power q >= 1 about the knee (the
+    highlights spread upward, the body below the knee unchanged, chroma kept):
+    Y' = Y (Y / K)^(q - 1) above K; q found by bisection so that mean Y / max channel of the 64 x 64
+    area average reaches `targets` (n,) (an end, 1 or 8, when out of reach)."""
+    from g2r_jax.content.scene_statistics import LUMINANCE, SIZE, _area_average
+
+    def curve(images, q):
+        y = images @ LUMINANCE
+        k = knee * np.maximum(y.max(axis=(1, 2), keepdims=True), 1e-12)
+        factor = np.where(y > k, (np.maximum(y, 1e-12) / k) ** (q[:, None, None] - 1), 1.0)
+        return images * factor[..., None]
+
+    small = _area_average(views.astype(np.float64), SIZE)
+    def brightness(q):
+        out = curve(small, q)
+        return (out @ LUMINANCE).mean(axis=(1, 2)) / np.maximum(out.max(axis=(1, 2, 3)), 1e-12)
+    low, high = np.full(len(views), 1.0), np.full(len(views), 8.0)
+    for _ in range(24):
+        middle = 0.5 * (low + high)
+        darker = brightness(middle) > targets
+        low, high = np.where(darker, middle, low), np.where(darker, high, middle)
+    return curve(views.astype(np.float64), 0.5 * (low + high)).astype(np.float32)
+
+
 def drawn_views(name, views, images, lights, profile, rng):
     """Prototype of a distribution content model: 'draw' each view's cast taken to the cast of one
     real file drawn at random; 'draw+tone' that file's brightness too (a luminance power, chroma
@@ -102,11 +132,15 @@ def drawn_views(name, views, images, lights, profile, rng):
     out = (views * gains[:, None, None, :].astype(np.float32))
     if name.endswith("+tone"):
         out = _luminance_tone(out, bright)
+    if name.endswith("+top"):
+        out = _highlight_tone(out, bright)
     return np.maximum(out, 0.0).astype(np.float32)
 
 
-def run(cameras, variants, estimators, seed: int, n: int) -> dict:
-    """{estimator/variant: {camera: [mean inner-third error per fold, degrees]}}."""
+def run(cameras, variants, estimators, seed: int, n: int, files: int | None = None) -> dict:
+    """{estimator/variant: {camera: [mean inner-third error per fold, degrees]}}; `files`: the fitted
+    families ('cast', 'scenes') see only that many of the inner two thirds' files, drawn at random
+    (as a user with few DNGs; the lights still come from all of them)."""
     from PIL import Image
 
     from g2r_jax.downstream import content_rows, experiment, real_sets, training_sets
@@ -116,7 +150,7 @@ def run(cameras, variants, estimators, seed: int, n: int) -> dict:
     linear = training_sets.linear_images([np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))])
     views = training_sets.cg_views(linear, n, seed)
     adapted = {name: variant_views(name, views) for name in variants
-               if name not in ("cast", "scenes") and not name.startswith(("draw", "cast+tone"))}
+               if name not in ("cast", "scenes") and not name.startswith(("draw", "cast+tone", "cast+top"))}
     errors, start = {}, time.perf_counter()
     for camera in cameras:
         real = real_sets.load_nus(NUS / f"{camera}.npz")
@@ -126,12 +160,14 @@ def run(cameras, variants, estimators, seed: int, n: int) -> dict:
             train = np.setdiff1d(np.arange(len(real.images)), test)
             inner, validate = content_rows.inner_split(train, groups, seed, fold)
             fitted = experiment.fitted_illuminants(profile, real.illuminants[inner], "auto", seed)
+            scenes_of = inner if files is None else np.random.default_rng(60_000 + 100 * seed + fold).choice(
+                inner, size=min(files, len(inner)), replace=False)
             for fitted_family in {"cast", "scenes"} & set(variants):    # fitted to the inner two thirds, per fold
-                model = content_rows.candidate_model(fitted_family, real.images[inner], real.illuminants[inner], views,
-                                                     profile)
+                model = content_rows.candidate_model(fitted_family, real.images[scenes_of], real.illuminants[scenes_of],
+                                                     views, profile)
                 adapted[fitted_family] = content_rows.adapted_views(model, views, 50_000 + 100 * seed + fold)
             for name in variants:
-                if name.startswith("draw") or name.startswith("cast+tone"):
+                if name.startswith("draw") or name.startswith(("cast+tone", "cast+top")):
                     adapted[name] = drawn_views(name, views, real.images[inner], real.illuminants[inner], profile,
                                                 np.random.default_rng(50_000 + 100 * seed + fold))
             for name in variants:
@@ -163,14 +199,21 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--seeds", type=int, default=1, help="seeds from --seed on, pooled")
     parser.add_argument("--n", type=int, default=200)
+    parser.add_argument("--files", type=int, help="fit 'cast' and 'scenes' to this many of the inner files")
+    parser.add_argument("--scenes-min-files", type=int,
+                        help="fit 'scenes' from this many files on (g2r_jax.content.scenes.MIN_FILES; below it, 'cast')")
     args = parser.parse_args(argv)
     if not NUS.is_dir() or not CARLA.is_dir():
         print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
         return 2
     cameras, variants, estimators = (args.cameras.split(","), args.variants.split(","), args.estimators.split(","))
+    if args.scenes_min_files is not None:
+        from g2r_jax.content import scenes
+
+        scenes.MIN_FILES = args.scenes_min_files
     errors = {}
     for seed in range(args.seed, args.seed + args.seeds):
-        for key, per_camera in run(cameras, variants, estimators, seed, args.n).items():
+        for key, per_camera in run(cameras, variants, estimators, seed, args.n, args.files).items():
             for camera, values in per_camera.items():
                 errors.setdefault(key, {}).setdefault(camera, []).extend(values)
     print("mean inner-third error (degrees, mean of the 3 folds and the seeds; the test folds are not read)\n")

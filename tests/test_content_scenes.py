@@ -102,14 +102,18 @@ def test_unprocess_draws_a_scene_per_image_and_leaves_the_other_draws_alone():
 
 
 def test_real_scenes_statistics_are_reached_by_frames():
-    """The adapted frames' brightness, as the check measures it, is the drawn scene's where the
-    power can reach it (these very colourful frames cannot be brightened past about 0.24 within
-    p >= 1/4), and spreads like the table's rather than around one value."""
+    """The adapted frames' brightness, as the check measures it, is the drawn scene's where it lies
+    below the frame's own (the highlights are only spread upward: a scene brighter than the frame
+    does not darken it), and spreads like the table's rather than around one value."""
     model = _model()
     frames = np.repeat(_frames(1), 16, axis=0)
     draws = np.linspace(0.0, 0.99, 16).astype(np.float32)
     adapted = np.asarray(content.apply(model, frames, draws))
     measured = statistics(adapted).values["brightness"]
     wanted = np.asarray(model.scene_brightness)[np.asarray(scenes.drawn_row(model, draws))]
-    assert np.sum(np.abs(measured / wanted - 1) < 0.03) >= 10
-    assert np.std(measured) > 0.05
+    own = statistics(frames[:1]).values["brightness"][0]
+    reachable = wanted < 0.9 * own
+    assert reachable.sum() >= 6
+    assert np.allclose(measured[reachable], wanted[reachable], rtol=0.03)
+    assert np.all(measured[~reachable] > 0.95 * own)   # not darkened (the cast's gains move it a little)
+    assert np.std(measured) > 0.03

@@ -57,8 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--sensitivities-camera", help="camera name inside a camspec file with several cameras")
     parser.add_argument("--name", help="profile name (default: the output file's stem)")
     parser.add_argument("--no-content-model", action="store_true",
-                        help="do not fit the content model (each CG frame's colour cast taken to the median cast "
-                             "of the DNGs' scenes; applied by default, see docs validation/content_model)")
+                        help="do not fit the content model (each CG frame's colour cast and brightness taken to "
+                             "those of one of the DNGs' scenes; applied by default, see docs validation/content_model)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the mixture model's initialisation")
     add_common_flags(parser)
     return parser
@@ -318,9 +318,8 @@ def body(args) -> int:
 
 def _with_content_model(profile, infos, args):
     """The profile with the content model of its DNGs' scenes (`g2r_jax.profile.fitting.content_model_of_dngs`:
-    each CG frame's colour cast taken to the median cast of these files), fitted without labels
-    and applied by default (docs/pages/validation/content_model.md: it lowered the error of both
-    estimators on all nine NUS cameras)."""
+    each CG frame's colour cast and brightness those of one of these files' scenes), fitted
+    without labels and applied by default (docs/pages/validation/content_model.md)."""
     from g2r_jax.content import describe
     from g2r_jax.content.fitting import files_weight
     from g2r_jax.profile.fitting import content_model_of_dngs

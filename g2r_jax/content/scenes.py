@@ -8,16 +8,21 @@ white-balanced RGB by the inverse of the profile's sRGB -> white-balanced camera
 target brightness b_k (mean luminance over the largest channel value). For a frame with draw
 u in [0, 1), k = floor(u K):
 
-1. brightness: a power on the luminance under the frame's peak luminance P, each pixel's chroma
-   kept: x1 = x (Y / P)^(p - 1), so Y1 = P (Y / P)^p; p in [1/4, 4] found by bisection on the
-   frame's mean grid (`model.mean_grid`) so that its brightness reaches b_k (it falls as p rises).
-   A power on each channel instead (`chroma_tone`) also multiplies every log-chroma by p;
+1. brightness: the highlights spread upward, the body kept: above the knee C = 1/2 of the frame's
+   peak luminance, x1 = x (Y / C)^(q - 1), so Y1 = C (Y / C)^q, each pixel's chroma kept, below it
+   x1 = x; q in [1, 8] found by bisection on the frame's mean grid (`model.mean_grid`) so that its
+   brightness reaches b_k (it falls as q rises; a frame darker than b_k stays as it is). Real
+   scenes owe their low mean under the peak to a few highlights far above a body whose light
+   spreads like the CG frames' (docs/pages/validation/content_model.md, finding 4): a power on the
+   whole range (Y1 = P (Y / P)^p) reached the brightness too but spread the body's light by p
+   (+1.5 to +2.3 robust sd in the check's light spread), and a power on each channel
+   (`chroma_tone`) also multiplies every log-chroma by p;
 2. cast, as the 'cast' family (`model._gains_toward`): x2_c = x1_c Y_m t_k,c / m_c, m the toned
    frame's mean colour (von Kries gains; Buchsbaum's grey world, J. Franklin Inst. 1980): its
-   grey-world cast is then the scene's exactly (p is found with these gains applied, so that the
+   grey-world cast is then the scene's exactly (q is found with these gains applied, so that the
    brightness is the scene's too).
 
-Both parameters come from the grid, the pixels then take one gain and one power each (the
+Both parameters come from the grid, the pixels then take one power and one gain each (the
 pipeline fuses them into its element-wise pass). Fitted from DNGs alone (`fitting.scenes_model`):
 the table holds the files' own (cast, brightness) pairs, their casts re-centred on the median
 shrunk to the prior's (as 'cast' is); with fewer than `MIN_FILES` files the 'cast' family is fitted
@@ -35,9 +40,9 @@ from g2r_jax.content.scene_statistics import LUMINANCE
 
 TABLE_SIZE = 64
 MIN_FILES = 20
-POWER_RANGE = (0.25, 4.0)
+POWER_RANGE = (1.0, 8.0)
+KNEE = 0.5      # of the frame's peak luminance: the threshold of the check's bright share
 _BISECTION_STEPS = 20
-_FLOOR = 1e-6   # relative luminance floor under the power (a black pixel stays black: x1 = 0)
 
 
 def table_rows(n: int, size: int = TABLE_SIZE) -> np.ndarray:
@@ -54,8 +59,10 @@ def _luminance(x):
 
 
 def _toned(image, peak, power):
-    """x (Y / P)^(p - 1) for images (..., H, W, 3), peaks P and powers p shaped (..., 1, 1, 1)."""
-    return image * jnp.power(jnp.maximum(_luminance(image)[..., None] / peak, _FLOOR), power - 1.0)
+    """x (Y / C)^(q - 1) above the knee C = `KNEE` P, x below it, for images (..., H, W, 3), peaks
+    P and powers q shaped (..., 1, 1, 1)."""
+    above = jnp.maximum(_luminance(image)[..., None] / (KNEE * peak), 1.0)
+    return image * jnp.power(above, power - 1.0)
 
 
 def _peak_luminance(grid):
@@ -70,8 +77,8 @@ def _brightness(grid):
 
 
 def tone_power(grid, brightness, finish=lambda toned: toned):
-    """The power p (...,) that takes the brightness of `finish(toned grid)` to `brightness` (...,),
-    by bisection in log p over `POWER_RANGE` (an end when out of reach)."""
+    """The power q (...,) that takes the brightness of `finish(toned grid)` to `brightness` (...,),
+    by bisection in log q over `POWER_RANGE` (an end when out of reach)."""
     peak = _peak_luminance(grid)
     low = jnp.full(jnp.shape(brightness), np.log(POWER_RANGE[0]), jnp.float32)
     high = jnp.full(jnp.shape(brightness), np.log(POWER_RANGE[1]), jnp.float32)

@@ -75,7 +75,7 @@ def _product_views(views, real, profile):
         model = content_rows.candidate_model(content_rows.FITTED, real.images, real.illuminants, views, profile)
     except ValueError:
         return views
-    return content_rows.adapted_views(model, views)
+    return content_rows.adapted_views(model, views, 5)
 
 
 def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds, say, workers=None,

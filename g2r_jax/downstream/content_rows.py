@@ -5,8 +5,9 @@ file; 'upi_content' is UPI on the same adapted views (so that the lead over UPI 
 equal content).
 
 The content model is the profile's own when it carries one (used as given). Else it is the one
-`g2r-fit-profile` fits (`FITTED`, the 'cast' family: each CG frame's grey-world cast taken to the
-median cast of the real files, balanced by their as-shot neutrals), fitted per fold to the
+`g2r-fit-profile` fits (`FITTED`, the 'scenes' family: each CG frame's grey-world cast and
+brightness those of one of the real files' scenes, drawn per frame, the casts balanced by the
+files' as-shot neutrals; 'cast', one median cast, below 20 files), fitted per fold to the
 training folds' files only, never the test fold; no label beyond the as-shot neutrals and no
 estimator is used to choose it. Protocol and measurement: docs/pages/validation/content_model.md.
 
@@ -34,9 +35,9 @@ import numpy as np
 # the others; the fitted 'chroma' is the identity on every camera and 'chroma_tone' made the
 # selection estimator worse (docs/pages/validation/content_model.md, findings 1 and 2).
 CANDIDATES = ("identity", "chroma@0.5", "chroma@0.35")
-# What the rows use when the profile has none: the model g2r-fit-profile fits (finding 3: it beat
-# the chroma candidates on the training folds' inner third, and trains the CNN within 1.3x of real data)
-FITTED = "cast"
+# What the rows use when the profile has none: the model g2r-fit-profile fits (finding 4: the
+# scenes' spread beat the one median cast on the training folds' inner third, on six cameras)
+FITTED = "scenes"
 SELECTION_ESTIMATOR = "moments"   # the estimator the page's selection used (cheap to train)
 INNER_FOLDS = 3                   # the training folds split into thirds: one third validates
 _APPLY_CHUNK = 100                # views per compiled call of `content.apply`

@@ -284,7 +284,7 @@ class _RowSets:
         from g2r_jax.downstream.content_rows import adapted_views
         from g2r_jax.pipeline import without_content
 
-        views = views if model is None else adapted_views(model, views)
+        views = views if model is None else adapted_views(model, views, salt)
         return _pairs.g2r_pairs(views, profile if as_given else without_content(profile), salt, size=self.size,
                                 saturated=saturated)
 

@@ -359,9 +359,11 @@ def dark_frame_note(dark_frames, *, used_for_noise: bool) -> str:
 
 
 def content_model_of_dngs(infos, colour_model, *, on_error=None) -> tuple:
-    """The content model `g2r-fit-profile` fits to DNGs' scenes (`g2r_jax.content`, family 'cast':
-    each CG frame's grey-world cast taken to the median cast of the files' scenes, shrunk toward
-    the prior of real scenes by their number), applied by default.
+    """The content model `g2r-fit-profile` fits to DNGs' scenes (`g2r_jax.content`, family
+    'scenes': each CG frame's grey-world cast and brightness those of one of the files' scenes,
+    drawn per frame, the casts re-centred on their median shrunk toward the prior of real scenes
+    by their number; 'cast', that median alone, below `content.scenes.MIN_FILES` files), applied
+    by default.
 
     **Arguments:** `infos`: `DngInfo`s of the files; `colour_model`: the camera's
     `DngColourModel`; `on_error(info, problem)`: told of each file that cannot be used.
@@ -374,7 +376,8 @@ def content_model_of_dngs(infos, colour_model, *, on_error=None) -> tuple:
         return read_dng_pixels(info.path, info), info.cfa_pattern, info.black_level, info.white_level, as_shot_neutral(info)
 
     try:
-        model, used = content_model_from_files(infos, read, colour_model=colour_model, on_error=on_error)
+        model, used = content_model_from_files(infos, read, colour_model=colour_model, on_error=on_error,
+                                               family="scenes")
     except ValueError as error:    # e.g. a median cast outside sRGB at the files' light: no model, said
         return None, 0, str(error)
     if model is None:
