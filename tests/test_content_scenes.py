@@ -46,6 +46,20 @@ def test_fit_holds_the_files_scenes_and_falls_back_to_cast_below_the_minimum():
     assert content.fit_content_model(_real_statistics(scenes.MIN_FILES - 1), family="scenes").family == "cast"
 
 
+def test_a_burst_of_one_scene_is_not_a_distribution_of_scenes():
+    """40 frames of one scene (statistics within a burst's noise) fit the 'cast' model; the same
+    frames among 30 distinct scenes count once."""
+    rng = np.random.default_rng(1)
+    one = _real_statistics(1)
+    burst = {k: np.repeat(v, 40) + (rng.normal(0, 2e-3, 40) if k.startswith("cast") else 0.0)
+             for k, v in one.values.items()}
+    burst["brightness"] = burst["brightness"] * (1 + rng.normal(0, 5e-3, 40))
+    assert content.fit_content_model(ContentStatistics(values=burst), family="scenes").family == "cast"
+    mixed = {k: np.concatenate([v, _real_statistics(30, seed=2).values[k]]) for k, v in burst.items()}
+    model = content.fit_content_model(ContentStatistics(values=mixed), family="scenes")
+    assert model.family == "scenes" and dict(model.target)["scenes"] <= 30 + 2
+
+
 def test_each_frame_takes_its_drawn_scenes_cast_and_brightness():
     model = _model()
     frames = _frames()

@@ -180,19 +180,22 @@ def scenes_model(real_statistics, to_camera, what: str = "real images") -> Conte
     cast and its brightness, the casts re-centred on the median shrunk toward the prior's
     (`_toward_the_prior`), carried to linear sRGB like 'cast' (a target outside the sRGB gamut at
     this light is floored at 1e-3 of its luminance); the 'cast' model when fewer than
-    `scenes.MIN_FILES` files have a finite cast and brightness (a few scenes are not the camera's
-    distribution), or when `real_statistics` is not per-file statistics."""
-    from g2r_jax.content.scenes import MIN_FILES, table_rows
+    `scenes.MIN_FILES` distinct scenes (`scenes.distinct_scenes`) have a finite cast and
+    brightness (a few scenes are not the camera's distribution), or when `real_statistics` is not
+    per-file statistics."""
+    from g2r_jax.content.scenes import MIN_FILES, distinct_scenes, table_rows
 
+    cast = _cast_model(real_statistics, to_camera, what)
     if not isinstance(real_statistics, ContentStatistics):
-        return _cast_model(real_statistics, to_camera, what)
+        return cast
     values = real_statistics.values
     usable = np.isfinite(values["cast_red"]) & np.isfinite(values["cast_blue"]) & (values["brightness"] > 0)
-    if usable.sum() < MIN_FILES:
-        return _cast_model(real_statistics, to_camera, what)
-    cast = _cast_model(real_statistics, to_camera, what)
     red, blue, brightness = (np.asarray(values[k], np.float64)[usable] for k in ("cast_red", "cast_blue", "brightness"))
+    distinct = distinct_scenes(red, blue, brightness)
+    if len(distinct) < MIN_FILES:
+        return cast
     centre = dict(cast.target)
+    red, blue, brightness = red[distinct], blue[distinct], brightness[distinct]
     red = red - np.median(red) + centre["cast_red"]
     blue = blue - np.median(blue) + centre["cast_blue"]
     rows = table_rows(len(red))
@@ -205,5 +208,5 @@ def scenes_model(real_statistics, to_camera, what: str = "real images") -> Conte
     targets = np.maximum(targets, 1e-3 * luminance[:, None])
     source = real_statistics.source or what
     return content_model(family="scenes", scene_casts=targets, scene_brightness=np.clip(brightness[rows], 1e-3, 1.0),
-                         source=f"{source}: each CG frame's cast and brightness those of one of its {len(red)} scenes",
-                         target={**centre, "brightness": float(np.median(brightness)), "files": float(len(red))})
+                         source=f"{source}: each CG frame's cast and brightness those of one of its {len(red)} distinct scenes",
+                         target={**centre, "brightness": float(np.median(brightness)), "scenes": float(len(red))})

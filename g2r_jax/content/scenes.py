@@ -25,8 +25,9 @@ u in [0, 1), k = floor(u K):
 Both parameters come from the grid, the pixels then take one power and one gain each (the
 pipeline fuses them into its element-wise pass). Fitted from DNGs alone (`fitting.scenes_model`):
 the table holds the files' own (cast, brightness) pairs, their casts re-centred on the median
-shrunk to the prior's (as 'cast' is); with fewer than `MIN_FILES` files the 'cast' family is fitted
-instead (a few scenes are not the camera's distribution). Measurement:
+shrunk to the prior's (as 'cast' is); with fewer than `MIN_FILES` distinct scenes
+(`distinct_scenes`: a burst is one) the 'cast' family is fitted instead (a few scenes are not the
+camera's distribution). Measurement:
 docs/pages/validation/content_model.md, finding 4.
 """
 
@@ -43,6 +44,19 @@ MIN_FILES = 20
 POWER_RANGE = (1.0, 8.0)
 KNEE = 0.5      # of the frame's peak luminance: the threshold of the check's bright share
 _BISECTION_STEPS = 20
+
+
+SAME_SCENE = (0.02, 0.02, 0.05)   # cells of log r/g, log b/g and log brightness: files in one are one scene
+
+
+def distinct_scenes(cast_red, cast_blue, brightness) -> np.ndarray:
+    """Indices of the files that are distinct scenes, the first of each: files whose casts fall in
+    one cell of 0.02 (2 % in a chroma ratio) and whose brightness in one of 5 % are taken as one
+    scene (a burst's frames, a file copied), so that a burst of one scene is not a distribution
+    of scenes."""
+    cells = np.stack([np.floor(np.asarray(v, np.float64) / step) for v, step in
+                      zip((cast_red, cast_blue, np.log(brightness)), SAME_SCENE)], -1)
+    return np.sort(np.unique(cells, axis=0, return_index=True)[1])
 
 
 def table_rows(n: int, size: int = TABLE_SIZE) -> np.ndarray:
