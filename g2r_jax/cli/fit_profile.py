@@ -332,8 +332,8 @@ def _with_content_model(profile, infos, args):
             print(f"g2r-fit-profile: note: no content model ({reason})")
         else:
             weights = "/".join(f"{files_weight(name, used):.0%}" for name in ("cast_red", "cast_blue"))
-            print(f"g2r-fit-profile: content model: {describe(model)}, from {used} file(s)' scenes (weight "
-                  f"{weights} red/blue, the rest the prior of real scenes); applied by default "
+            print(f"g2r-fit-profile: content model: {describe(model)}, from {used} file(s)' scenes (their median "
+                  f"cast weighs {weights} red/blue, the rest the prior of real scenes); applied by default "
                   "(g2r-convert --no-content-model turns it off)"
                   + (f"; {len(skipped)} file(s) too small or without a neutral" if skipped else ""))
     return profile if model is None else replace(profile, content=model)

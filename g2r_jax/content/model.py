@@ -115,7 +115,8 @@ def describe(model: ContentModel) -> str:
     """One line naming the family and the parameters it uses, for the commands' messages."""
     if model.family == "scenes":
         brightness = np.asarray(model.scene_brightness)
-        return (f"scenes, each frame's cast and brightness those of one of {len(brightness)} scenes drawn at random "
+        count = int(dict(model.target).get("scenes", len(brightness)))
+        return (f"scenes, each frame's cast and brightness those of one of {count} real scenes drawn at random "
                 f"(brightness {np.min(brightness):.2f}-{np.max(brightness):.2f}, median {np.median(brightness):.2f})")
     if model.family == "cast":
         r, g, b = (float(v) for v in model.cast_target)
