@@ -4,7 +4,7 @@ out), the noise models and the timings.
 
     python benchmarks/downstream_denoising.py [FOLDER] [--profile NAME_OR_JSON] [--seeds 0 1 2]
         [--steps N | --max-steps 3000] [--folds 2] [--cg 16] [--cg-folder ../shared/data/cg/carla]
-        [--profile-noise-scale 1] [--dim] [--content-chroma S | --content-cast C] [--rows truth,upi]
+        [--profile-noise-scale 1] [--dim] [--content-chroma S | --content-cast C | --content-scenes NUS_CAMERA] [--rows truth,upi]
         [--contents cg] [--workers N]
 
 FOLDER: DNGs of one static scene from one camera (bad files are named and skipped). Without it,
@@ -24,6 +24,23 @@ import time
 from pathlib import Path
 
 DEFAULT_CG = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "cg" / "carla"
+
+
+def _nus_scenes_model(camera: str, profile):
+    """The 'scenes' model of a NUS camera's thumbnails (balanced by their measured lights), carried
+    to linear sRGB through `profile`'s matrices at D65 (CIE 15:2004 xy 0.3127, 0.3290), applied."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    from g2r_jax import content
+    from g2r_jax.colour.dng_model import xy_to_camera_neutral
+    from g2r_jax.downstream import real_sets
+
+    real = real_sets.load_nus(DEFAULT_CG.parents[1] / "estimation" / "nus" / f"{camera}.npz")
+    stats = content.statistics(content.white_balanced_camera_rgb(real.images, real.illuminants), source=camera)
+    neutral = np.asarray(xy_to_camera_neutral(jnp.asarray([0.3127, 0.3290]), profile.colour), np.float64)
+    to_camera = content.srgb_to_camera_matrices(neutral[None], profile.colour)[0]
+    return content.with_default(content.fit_content_model(stats, family="scenes", to_camera=to_camera), True)
 
 
 def main(argv=None):
@@ -49,6 +66,9 @@ def main(argv=None):
                              "scale, applied (issue 32: it must not hurt the CG rows)")
     parser.add_argument("--content-cast", type=float, default=None,
                         help="the same with a 'cast' content model keeping this share of each CG frame's cast")
+    parser.add_argument("--content-scenes", default=None, metavar="NUS_CAMERA",
+                        help="the same with the 'scenes' content model fitted to that NUS camera's scenes (their "
+                             "thumbnails balanced by their lights; no burst camera has real scenes of its own here)")
     parser.add_argument("--rows", default=",".join(("upi", "shipped", "fitted", "truth", "real")),
                         help="comma-separated rows of the check")
     parser.add_argument("--contents", default="cg,scene", help="comma-separated contents: cg, scene")
@@ -102,6 +122,9 @@ def main(argv=None):
                                                                     apply_by_default=True))
             print(f"the rows' profile applies a 'cast' content model keeping {args.content_cast:g} of each CG "
                   "frame's cast")
+        if args.content_scenes is not None:
+            profile = schema.replace(profile, content=_nus_scenes_model(args.content_scenes, profile))
+            print(f"the rows' profile applies the 'scenes' content model of {args.content_scenes}'s NUS scenes")
         read_s = time.perf_counter() - started
         result = denoising.run_burst_check(burst, profile, cg, rows=tuple(args.rows.split(",")), contents=contents,
                                            seeds=args.seeds,

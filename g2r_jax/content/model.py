@@ -30,6 +30,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from g2r_jax.content.scene_statistics import LUMINANCE
+from g2r_jax.content.scene_statistics import luminance as _luminance
 
 FAMILIES = {
     "identity": "no change",
@@ -184,13 +185,6 @@ def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"], draw=None,
     safe_peak = jnp.where(peak > 0, peak, 1.0)
     toned = safe_peak * jnp.power(jnp.clip(x / safe_peak, 0.0, None), p)
     return jnp.where(p == 1.0, x, toned)
-
-
-def _luminance(x):
-    """Y of linear sRGB, (..., 3) -> (..., 1), element-wise (fuses with the pipeline's other
-    pixel stages)."""
-    weights = [float(w) for w in LUMINANCE]
-    return weights[0] * x[..., 0:1] + weights[1] * x[..., 1:2] + weights[2] * x[..., 2:3]
 
 
 MEAN_GRID = 64   # the image's mean colour is taken over at least this many rows and columns of it

@@ -46,6 +46,13 @@ _EPS = 1e-12
 LUMINANCE = np.asarray(MATRIX_SRGB_TO_XYZ[1], np.float64)
 
 
+def luminance(x):
+    """Y of linear sRGB, (..., 3) -> (..., 1), element-wise in any array library (NumPy or JAX:
+    it fuses with a compiled program's other pixel stages)."""
+    weights = [float(w) for w in LUMINANCE]
+    return weights[0] * x[..., 0:1] + weights[1] * x[..., 1:2] + weights[2] * x[..., 2:3]
+
+
 @dataclasses.dataclass(frozen=True)
 class ContentStatistics:
     """Per-image statistics (each an (N,) array, NaN where an image has too few lit pixels) and

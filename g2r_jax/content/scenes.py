@@ -37,7 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from g2r_jax.content.scene_statistics import LUMINANCE
+from g2r_jax.content.scene_statistics import luminance
 
 TABLE_SIZE = 64
 MIN_FILES = 20
@@ -68,8 +68,7 @@ def table_rows(n: int, size: int = TABLE_SIZE) -> np.ndarray:
 
 
 def _luminance(x):
-    w = [float(v) for v in LUMINANCE]
-    return w[0] * x[..., 0] + w[1] * x[..., 1] + w[2] * x[..., 2]
+    return luminance(x)[..., 0]
 
 
 def _toned(image, peak, power):
