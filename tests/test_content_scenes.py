@@ -36,25 +36,26 @@ def _frames(n: int = 3):
     return np.kron(blocks, np.ones((1, 8, 8, 1))).astype(np.float32)
 
 
-def test_fit_holds_the_files_scenes_and_falls_back_to_cast_below_the_minimum():
+def test_fit_holds_the_files_scenes_from_one_file_on():
     model = _model(40)
     assert model.family == "scenes" and np.asarray(model.scene_casts).shape == (scenes.TABLE_SIZE, 3)
     assert np.allclose(np.asarray(model.scene_casts) @ LUMINANCE, 1.0, atol=1e-5)
     real = _real_statistics(40)
     held = np.asarray(model.scene_brightness)
     assert np.all(np.min(np.abs(held[:, None] - real.values["brightness"][None]), axis=1) < 1e-6)
-    assert content.fit_content_model(_real_statistics(scenes.MIN_FILES - 1), family="scenes").family == "cast"
+    one = content.fit_content_model(_real_statistics(1), family="scenes")
+    assert one.family == "scenes" and len(set(np.asarray(one.scene_brightness).tolist())) == 1
 
 
 def test_a_burst_of_one_scene_is_not_a_distribution_of_scenes():
-    """40 frames of one scene (statistics within a burst's noise) fit the 'cast' model; the same
-    frames among 30 distinct scenes count once."""
+    """40 frames of one scene (statistics within a burst's noise) are one scene in the table; the
+    same frames among 30 distinct scenes count once."""
     rng = np.random.default_rng(1)
     one = _real_statistics(1)
     burst = {k: np.repeat(v, 40) + (rng.normal(0, 2e-3, 40) if k.startswith("cast") else 0.0)
              for k, v in one.values.items()}
     burst["brightness"] = burst["brightness"] * (1 + rng.normal(0, 5e-3, 40))
-    assert content.fit_content_model(ContentStatistics(values=burst), family="scenes").family == "cast"
+    assert dict(content.fit_content_model(ContentStatistics(values=burst), family="scenes").target)["scenes"] <= 2
     mixed = {k: np.concatenate([v, _real_statistics(30, seed=2).values[k]]) for k, v in burst.items()}
     model = content.fit_content_model(ContentStatistics(values=mixed), family="scenes")
     assert model.family == "scenes" and dict(model.target)["scenes"] <= 30 + 2

@@ -179,10 +179,9 @@ def scenes_model(real_statistics, to_camera, what: str = "real images") -> Conte
     """'scenes' (`g2r_jax.content.scenes`): a table of the files' own scenes, each its grey-world
     cast and its brightness, the casts re-centred on the median shrunk toward the prior's
     (`_toward_the_prior`), carried to linear sRGB like 'cast' (a target outside the sRGB gamut at
-    this light is floored at 1e-3 of its luminance); the 'cast' model when fewer than
-    `scenes.MIN_FILES` distinct scenes (`scenes.distinct_scenes`) have a finite cast and
-    brightness (a few scenes are not the camera's distribution), or when `real_statistics` is not
-    per-file statistics."""
+    this light is floored at 1e-3 of its luminance), each distinct scene once
+    (`scenes.distinct_scenes`); the 'cast' model when fewer than `scenes.MIN_FILES` scenes have a
+    finite cast and brightness, or when `real_statistics` is not per-file statistics (medians)."""
     from g2r_jax.content.scenes import MIN_FILES, distinct_scenes, table_rows
 
     cast = _cast_model(real_statistics, to_camera, what)

@@ -7,7 +7,7 @@ equal content).
 The content model is the profile's own when it carries one (used as given). Else it is the one
 `g2r-fit-profile` fits (`FITTED`, the 'scenes' family: each CG frame's grey-world cast and
 brightness those of one of the real files' scenes, drawn per frame, the casts balanced by the
-files' as-shot neutrals; 'cast', one median cast, below 20 files), fitted per fold to the
+files' as-shot neutrals), fitted per fold to the
 training folds' files only, never the test fold; no label beyond the as-shot neutrals and no
 estimator is used to choose it. Protocol and measurement: docs/pages/validation/content_model.md.
 

@@ -362,7 +362,7 @@ def content_model_of_dngs(infos, colour_model, *, on_error=None) -> tuple:
     """The content model `g2r-fit-profile` fits to DNGs' scenes (`g2r_jax.content`, family
     'scenes': each CG frame's grey-world cast and brightness those of one of the files' scenes,
     drawn per frame, the casts re-centred on their median shrunk toward the prior of real scenes
-    by their number; 'cast', that median alone, below `content.scenes.MIN_FILES` files), applied
+    by their number; each distinct scene once, so that a burst is one scene), applied
     by default.
 
     **Arguments:** `infos`: `DngInfo`s of the files; `colour_model`: the camera's
