@@ -198,7 +198,11 @@ def _write(args, document, lines, total) -> None:
 
 
 def _closing(args, document, total) -> list:
-    lines = ["## All cameras", "", summary_table(document), "", "## The issue's targets", "", targets_table(document), ""]
+    lines = ["## All cameras", "", summary_table(document), ""]
+    if all({"fitted", "upi", "real"} <= set(document[camera]["all"]["rows"]) for camera in document):
+        lines += ["## The issue's targets", "", targets_table(document), ""]
+    else:
+        lines += ["(the issue's targets need the rows fitted, upi and real: not all ran)", ""]
     if args.lights:
         lines += ["## Number of DNGs (PSNR dB / ΔE2000)", "", curve_table(document, args.lights), ""]
     return lines + [f"Total {total / 60:.1f} min; UNet width {args.width}, {args.steps} steps of {args.batch}, "
