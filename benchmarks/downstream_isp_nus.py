@@ -56,6 +56,31 @@ def profiles(name: str):
     return profile, replace(profile, content=with_default(shipped_content_model(name, profile.colour), True))
 
 
+def content_part(part: str) -> None:
+    """A diagnosis of the 'scenes' content model (issue 47), not a product setting: the ISP rows'
+    fitted model keeps only its cast spread ('cast-spread': every scene's brightness 1, which no
+    frame is darkened to) or only its brightness ('brightness': every scene's cast the median one
+    of the 'cast' model fitted to the same files)."""
+    from g2r_jax import content
+    from g2r_jax.downstream import content_rows
+
+    fitted = content_rows.candidate_model
+
+    def variant(name, images, lights, views, profile):
+        model = fitted(name, images, lights, views, profile)
+        if model.family != "scenes":
+            return model
+        casts, brightness = np.asarray(model.scene_casts), np.asarray(model.scene_brightness)
+        if part == "cast-spread":
+            brightness = np.ones_like(brightness)
+        else:
+            casts = np.tile(np.asarray(fitted("cast", images, lights, views, profile).cast_target), (len(casts), 1))
+        return content.content_model(family="scenes", scene_casts=casts, scene_brightness=brightness,
+                                     source=f"{model.source} ({part} only)")
+
+    content_rows.candidate_model = variant
+
+
 def run_camera(name: str, args, cg, say):
     """{'all': IspResult, 1: IspResult of the curve, ...} of one camera."""
     from g2r_jax.downstream import isp, isp_pairs, real_sets
@@ -169,6 +194,8 @@ def _arguments(argv):
     parser.add_argument("--no-masks", action="store_true",
                         help="measure and train on every pixel, the thumbnails' masked chart and saturated pixels "
                              "(written white) included: the protocol before the masks")
+    parser.add_argument("--content-part", choices=("cast-spread", "brightness"),
+                        help="diagnosis: the 'scenes' model's cast spread or brightness alone (content_part)")
     parser.add_argument("--json", type=Path, help="results, rewritten after each camera; a camera already in it "
                                                   "(from a stopped run with the same file) is not run again")
     parser.add_argument("--markdown", type=Path)
@@ -232,6 +259,8 @@ def main(argv=None) -> int:
         print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
         return 2
     compile_cache.enable(program="g2r_jax-downstream")
+    if args.content_part:
+        content_part(args.content_part)
     cg = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))]
     say = lambda m: print(f"  {m}", file=sys.stderr, flush=True)
     start = time.perf_counter()
