@@ -132,3 +132,29 @@ def test_real_scenes_statistics_are_reached_by_frames():
     assert np.allclose(measured[reachable], wanted[reachable], rtol=0.03)
     assert np.all(measured[~reachable] > 0.95 * own)   # not darkened (the cast's gains move it a little)
     assert np.std(measured) > 0.03
+
+
+def test_as_cast_is_the_cast_model_of_the_same_files_and_convert_offers_it(tmp_path, capsys):
+    real = _real_statistics(40)
+    scenes_model = content.fit_content_model(real, family="scenes")
+    cast_model = content.fit_content_model(real, family="cast")
+    reduced = content.as_cast(scenes_model)
+    assert reduced.family == "cast"
+    assert np.allclose(np.asarray(reduced.cast_target), np.asarray(cast_model.cast_target), atol=1e-6)
+    with pytest.raises(ValueError, match="holds no cast"):
+        content.as_cast(content.content_model(0.5))
+
+    import json
+
+    from PIL import Image
+
+    from g2r_jax.cli.convert import main as convert
+
+    profile = replace(without_content(g2r_jax.load_profile("Canon600D")), content=content.with_default(scenes_model, True))
+    (tmp_path / "profile.json").write_text(json.dumps(profile_to_dict(profile)))
+    (tmp_path / "in").mkdir()
+    Image.fromarray((np.asarray(_frames(1)[0]) ** (1 / 2.2) * 255).astype(np.uint8)).save(tmp_path / "in" / "a.png")
+    assert convert([str(tmp_path / "in"), "--profile", str(tmp_path / "profile.json"), "-o", str(tmp_path / "out"),
+                    "--content-cast-only", "--seed", "0"]) == 0
+    said = capsys.readouterr()
+    assert "content model: cast" in said.out + said.err

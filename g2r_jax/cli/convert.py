@@ -62,6 +62,10 @@ def build_parser() -> argparse.ArgumentParser:
                               "gets the 'cast' model of the prior of real scenes")
     content.add_argument("--no-content-model", action="store_true",
                          help="do not apply the profile's content model")
+    content.add_argument("--content-cast-only", action="store_true",
+                         help="apply only the content model's median cast (the 'cast' model), not each scene's "
+                              "cast and brightness: the neural ISP trained better so (see docs "
+                              "validation/content_model)")
     parser.add_argument("--pairs", action="store_true",
                         help="also write what each task trains on beside each x.dng: x.clean.dng (no noise: the "
                              "denoising target), x.scene.png (16-bit sRGB: the frame as the camera saw it, after "
@@ -156,7 +160,7 @@ def read_illuminant_csv(path: Path):
 
 def _content_choice(profile, args, say):
     """The profile with its content model kept, forced on or dropped as the flags say."""
-    from g2r_jax.content import describe, prior_cast_model, with_default
+    from g2r_jax.content import as_cast, describe, prior_cast_model, with_default
     from g2r_jax.profile.schema import replace
 
     model = profile.content
@@ -168,6 +172,9 @@ def _content_choice(profile, args, say):
         return profile
     if args.no_content_model:
         return replace(profile, content=None)
+    if args.content_cast_only:
+        model = with_default(as_cast(model), True)
+        profile = replace(profile, content=model)
     if args.content_model:
         model = with_default(model, True)
         profile = replace(profile, content=model)

@@ -207,5 +207,6 @@ def scenes_model(real_statistics, to_camera, what: str = "real images") -> Conte
     targets = np.maximum(targets, 1e-3 * luminance[:, None])
     source = real_statistics.source or what
     return content_model(family="scenes", scene_casts=targets, scene_brightness=np.clip(brightness[rows], 1e-3, 1.0),
+                         cast_target=np.asarray(cast.cast_target),
                          source=f"{source}: each CG frame's cast and brightness those of one of its {len(red)} distinct scenes",
                          target={**centre, "brightness": float(np.median(brightness)), "scenes": float(len(red))})

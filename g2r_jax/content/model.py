@@ -51,7 +51,7 @@ class ContentModel(eqx.Module):
     chroma_scale: Float[Array, ""]
     tone_power: Float[Array, ""]
     cast_scale: Float[Array, ""]
-    cast_target: Float[Array, "3"]
+    cast_target: Float[Array, "3"]          # 'cast'; 'scenes': the median cast (`as_cast`)
     family: str = eqx.field(static=True, default="identity")
     source: str = eqx.field(static=True, default="")
     target: tuple = eqx.field(static=True, default=())   # ((statistic, real median), ...) it was fitted to
@@ -125,6 +125,20 @@ def describe(model: ContentModel) -> str:
                 f"({r:.3f}, {g:.3f}, {b:.3f}) (linear sRGB)")
     words = f"{model.family}, chroma scale {float(model.chroma_scale):.2f}"
     return words + (f", tone power {float(model.tone_power):.2f}" if model.family == "chroma_tone" else "")
+
+
+def as_cast(model: ContentModel) -> ContentModel:
+    """The 'cast' model within `model`: itself for 'cast', the median cast of a 'scenes' model's
+    table (its `cast_target`, what the 'cast' family fits to the same files); ValueError for the
+    other families, which hold no cast."""
+    if model.family == "cast":
+        return model
+    if model.family != "scenes":
+        raise ValueError(f"the content model {model.family!r} holds no cast (only 'cast' and 'scenes' do)")
+    return content_model(cast_scale=CAST_KEPT, cast_target=np.asarray(model.cast_target), family="cast",
+                         source=f"{model.source} (its median cast only)",
+                         target={k: v for k, v in model.target if k.startswith("cast_")},
+                         apply_by_default=model.apply_by_default)
 
 
 def with_default(model: ContentModel, apply_by_default: bool) -> ContentModel:
