@@ -115,17 +115,18 @@ def test_fit_from_files_goes_on_past_a_bad_file():
 
 
 @pytest.mark.slow
-def test_fit_profile_stores_the_cast_model_on_and_convert_follows_the_flags(tmp_path, capsys):
+def test_fit_profile_stores_the_scenes_model_on_and_convert_follows_the_flags(tmp_path, capsys):
     from g2r_jax.cli import convert, fit_profile
 
     dngs = tmp_path / "dngs"
     assert convert.main(["--example", "--profile", "gopro_hero6", "-o", str(dngs), "--quiet"]) == 0
     assert fit_profile.main([str(dngs), "-o", str(tmp_path / "cam.json")]) == 0
     said = capsys.readouterr().out
-    assert "content model: cast" in said and "from 1 file(s)' scenes (weight 1%/2% red/blue, the rest the prior" in said
+    assert "content model: scenes, each frame's cast and brightness those of one of 1 real scenes" in said
+    assert "from 1 file(s)' scenes (their median cast weighs 1%/2% red/blue, the rest the prior" in said
     block = json.loads((tmp_path / "cam.json").read_text())["content"]
-    assert block["family"] == "cast" and block["apply_by_default"] is True and "1 DNG file(s)" in block["source"]
-    assert block["cast_scale"] == 0.0 and len(block["cast_target"]) == 3
+    assert block["family"] == "scenes" and block["apply_by_default"] is True and "1 DNG file(s)" in block["source"]
+    assert len(block["cast_target"]) == 3 and len(block["scene_casts"]) == len(block["scene_brightness"]) == 64
     assert fit_profile.main([str(dngs), "-o", str(tmp_path / "plain.json"), "--no-content-model"]) == 0
     assert "content" not in json.loads((tmp_path / "plain.json").read_text())
     document = json.loads((tmp_path / "cam.json").read_text())
@@ -144,7 +145,7 @@ def test_fit_profile_stores_the_cast_model_on_and_convert_follows_the_flags(tmp_
     assert off[()] == off[("--no-content-model",)] != off[("--content-model",)]
     assert off[("--no-content-model",)] == on[("--no-content-model",)]
     manifest = lambda name: json.loads((tmp_path / name / "manifest.jsonl").read_text().splitlines()[0])
-    assert manifest("on0")["content_model"].startswith("cast, ")                # says what the scene went through
+    assert manifest("on0")["content_model"].startswith("scenes, ")              # says what the scene went through
     assert "content_model" not in manifest("on1") and "content_model" not in manifest("off0")
 
 
