@@ -49,6 +49,44 @@ def test_synthetic_files_help_few_real_files_and_useless_ones_are_refused(kind, 
     assert scores["mixed, g2r_jax as 300 files"] > scores["real"] + 1    # misleading synthetic files cost, and are seen to
 
 
+def test_cross_validation_scores_every_real_file_once_with_duplicates_together():
+    images = np.random.default_rng(0).uniform(0, 1, (10, 4, 4, 3)).astype(np.float32)
+    images = np.concatenate([images, images[:3]])      # three files copied: one scene each
+    parts = aug._cross_validation_parts(images, seed=5)
+    assert len(parts) == aug.FOLDS and all(len(p) for p in parts)
+    assert np.array_equal(np.sort(np.concatenate(parts)), np.arange(len(images)))
+    for copy, original in zip(range(10, 13), range(3)):
+        assert [copy in p for p in parts] == [original in p for p in parts]
+    again = aug._cross_validation_parts(images, seed=5)
+    assert all(np.array_equal(a, b) for a, b in zip(parts, again))
+
+
+def test_synthetic_alone_is_chosen_over_few_real_files_and_trained_once(worlds, monkeypatch):
+    real, synthetic, (test_x, test_y), _ = worlds
+    few = (real[0][:6], real[1][:6])
+    trained = []
+    original = est.train_estimator
+    monkeypatch.setattr(est, "train_estimator", lambda kind, x, *a, **k: trained.append(len(x)) or original(kind, x, *a, **k))
+    predict, recipe, scores = aug.train_chosen("moments", aug.AugmentedSet(few, synthetic), seed=0,
+                                               recipes=(aug.REAL, aug.SYNTHETIC))
+    assert recipe == aug.SYNTHETIC and scores["g2r_jax alone"] < scores["real"], scores
+    assert trained.count(len(synthetic[0])) == 1          # not once per fold, nor again for the final
+    alone = aug.train("moments", aug.AugmentedSet(few, synthetic), aug.SYNTHETIC)(test_x)
+    np.testing.assert_allclose(predict(test_x), alone, atol=1e-6)
+
+
+def test_a_combination_must_beat_the_synthetic_set_alone_when_that_beats_real_files_alone():
+    noise = np.random.default_rng(1).normal(0, 0.3, 30)
+    real, synthetic = 4.0 + noise, 3.0 + noise + 0.05 * np.random.default_rng(2).normal(size=30)
+    barely = synthetic - 0.01 + 0.5 * np.random.default_rng(3).normal(size=30)
+    clearly = synthetic - 0.5
+    mixed, pretrained = aug.Recipe("mixed", 30), aug.Recipe("pretrained")
+    assert aug._clear_winner({aug.REAL: real, aug.SYNTHETIC: synthetic, mixed: barely}) == aug.SYNTHETIC
+    assert aug._clear_winner({aug.REAL: real, aug.SYNTHETIC: synthetic, mixed: barely, pretrained: clearly}) == pretrained
+    assert aug._clear_winner({aug.REAL: real, mixed: barely}) == mixed          # no synthetic candidate: against real
+    assert aug._clear_winner({aug.REAL: real, aug.SYNTHETIC: real + 0.01}) == aug.REAL
+
+
 def test_too_few_real_files_take_the_stated_recipe(worlds):
     real, synthetic, _, _ = worlds
     few = (real[0][:4], real[1][:4])
