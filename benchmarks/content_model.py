@@ -57,7 +57,7 @@ def _row_sets(real, train, views, srgb_views, model, fitted, seed, fold):
     from g2r_jax.downstream.content_rows import adapted_views
 
     salt = 1000 * seed + 10 * fold + 4
-    adapted = adapted_views(model, views, salt)
+    adapted = adapted_views(model, views, salt + 1)   # the library's draws (`content_rows._adapted`): one implementation
     return {"fitted": lambda: training_sets.g2r_set(views, fitted, salt),
             "fitted+content": lambda: training_sets.g2r_set(adapted, fitted, salt),
             "upi": lambda: training_sets.upi_set(srgb_views, seed + 1),
