@@ -10,18 +10,27 @@ pool (leave-one-camera-out: none of its lights informs its own prior); `upi` (li
 content only) is UPI's random cameras on the same views, as `downstream.experiment`'s upi row;
 `pooled-gs` leaves all nine
 NUS cameras out (only the Gehler-Shi lights: other scenes, since the NUS cameras shot many of the
-same scenes, so `pooled` may know the test camera's scenes' lights from its siblings). Each count below all is
-drawn `--draws` times per fold (a different random subset of the fold's training lights each).
+same scenes, so `pooled` may know the test camera's scenes' lights from its siblings); `auto-gs`
+is `auto` with all nine NUS cameras left out of its pool (`choose_illuminant_model(exclude=)`): the
+product's default measured leave-one-dataset-out (below 10 lights the Gehler-Shi lights blended
+with the camera's; from 10 the kernel with the cross-camera prior, which holds no NUS light, so
+there `auto-gs` is `auto` and trains once). Each count below all is
+drawn `--draws` times per fold (a different random subset of the fold's training files each).
 Content: `cg` (the CARLA frames, the paper's setting), `cg-cast` (the same through the `cast`
 content model a shipped profile carries, each frame's cast taken to the NUS prior's with the camera
 under test left out, through its matrices: issue 32, for UPI too; so `shipped` on `cg-cast` is the
-profile as shipped) or `real` (the training
+profile as shipped), `cg-scenes` (the content model a user gets today: with 0 files the shipped
+profile's, as `cg-cast`; from 1 file the `scenes` model `g2r-fit-profile` fits, fitted to the same
+training files whose lights the row uses, each file white-balanced by its light as by its
+AsShotNeutral, the prior of real scenes it shrinks toward with the camera under test left out as
+in `cg-cast`; UPI at 0 on the same views) or `real` (the training
 folds' real images relit to the model's lights, `experiment`'s real_profile_light: the lights'
 own cost).
 Identical models (e.g. `auto` below 10 lights and `prior`) are trained once.
 
     python benchmarks/few_lights.py [--cameras Canon600D,NikonD40] [--lights 0,1,5,all]
-        [--models prior,locus,kernel,pooled] [--content cg,cg-cast,real] [--estimators cnn,moments]
+        [--models prior,locus,kernel,pooled] [--content cg,cg-cast,cg-scenes,real]
+        [--estimators cnn,moments,histogram]
         [--seeds 1] [--n 300] [--draws 1] --out out/few_lights.jsonl
     python benchmarks/few_lights.py --summary --out out/few_lights.jsonl
     python benchmarks/few_lights.py --energy
@@ -44,10 +53,11 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from downstream_nus import CAMERAS, CARLA, NUS, camera_profile, shipped_content_model  # noqa: E402
+from downstream_nus import CAMERAS, CARLA, DATA, NUS, camera_profile, shipped_content_model  # noqa: E402
 
-MODELS = ("prior", "locus", "kernel", "auto", "pooled", "pooled-gs")
+MODELS = ("prior", "locus", "kernel", "auto", "auto-gs", "pooled", "pooled-gs")
 NO_LIGHT_MODELS = ("prior", "locus")
+CONTENTS = ("cg", "cg-cast", "cg-scenes", "real")
 
 
 _POOLED_BASES = {}
@@ -55,7 +65,8 @@ _POOLED_BASES = {}
 
 def model_for(name, camera, profile, lights):
     """The profile with the illuminant model `name` fitted to `lights` (N, 3) of this camera, or
-    None where the model does not take that many lights. `pooled` leaves `camera` out of the pool."""
+    None where the model does not take that many lights. `pooled` leaves `camera` out of the pool,
+    `pooled-gs` and `auto-gs` every NUS camera (`CAMERAS`)."""
     from g2r_jax.illuminants import choice
     from g2r_jax.illuminants.distributions import neutral_to_chromaticity
     from g2r_jax.profile.schema import replace
@@ -74,6 +85,8 @@ def model_for(name, camera, profile, lights):
                 profile.colour, lambda p: choice.camera_locus_tangents(p, profile.colour), exclude=exclude)
         model, _ = choice.fit_pooled_for_camera(points, profile.colour, exclude=exclude,
                                                 base=_POOLED_BASES[(camera, name)])
+    elif name == "auto-gs":
+        model = choice.choose_illuminant_model(points, profile.colour, "auto", exclude=CAMERAS).model
     else:
         model = choice.choose_illuminant_model(points, profile.colour, name).model
     return replace(profile, illuminants=model)
@@ -88,13 +101,36 @@ def fingerprint(profile) -> str:
     return digest.hexdigest()[:16]
 
 
-def light_subsets(train_lights, count, draws, seed, fold):
-    """`draws` random subsets of `count` training lights (all of them once for count None)."""
-    if count is None or count >= len(train_lights):
-        return [train_lights]
-    return [train_lights[np.random.default_rng([seed, fold, count, draw]).choice(len(train_lights), count,
-                                                                                  replace=False)]
+def subset_indices(n_train, count, draws, seed, fold):
+    """`draws` random subsets of `count` of the fold's `n_train` training files, as indices into
+    them (all of them once for count None or count >= n_train)."""
+    if count is None or count >= n_train:
+        return [np.arange(n_train)]
+    return [np.random.default_rng([seed, fold, count, draw]).choice(n_train, count, replace=False)
             for draw in range(draws)]
+
+
+_PRIORS_WITHOUT = {}
+
+
+def scenes_content(camera, profile, images, lights, views):
+    """The content model of `cg-scenes` for the training files `images` (N, 64, 64, 3) with lights
+    (N, 3): what `g2r-fit-profile` fits to N >= 1 DNGs (`downstream.content_rows.FITTED`, the
+    'scenes' family, the files white-balanced by their lights as by their AsShotNeutral), its cast
+    centre shrunk toward the prior of real scenes without `camera` (`content.prior.real_scenes_without`,
+    as the shipped profiles' prior leaves their camera out); with no file, the content model a
+    shipped profile carries (`shipped_content_model`, as `cg-cast`)."""
+    from unittest import mock
+
+    from g2r_jax.content import prior as content_prior
+    from g2r_jax.downstream.content_rows import FITTED, candidate_model
+
+    if len(images) == 0:
+        return shipped_content_model(camera, profile.colour)
+    if camera not in _PRIORS_WITHOUT:
+        _PRIORS_WITHOUT[camera] = content_prior.real_scenes_without(DATA, camera)
+    with mock.patch.dict(content_prior.REAL_SCENES["medians"], _PRIORS_WITHOUT[camera]):
+        return candidate_model(FITTED, images, lights, views, profile)
 
 
 def _done(out: Path) -> set:
@@ -105,6 +141,19 @@ def _done(out: Path) -> set:
         r = json.loads(line)
         keys.add((r["camera"], r["model"], r["lights"], r["content"], r["estimator"], r["seed"], r["fold"], r["draw"]))
     return keys
+
+
+def scenes_views(camera, profile, images, lights, views, cg_views, salt):
+    """The CG `views` through `scenes_content` of the files `images` with `lights` (the scenes
+    drawn per view from `salt`); with no file the `cg-cast` views (the shipped profile's model),
+    applied as `cg-cast` applies it."""
+    from g2r_jax import content as content_model
+    from g2r_jax.downstream.content_rows import adapted_views
+
+    model = scenes_content(camera, profile, images, lights, views)
+    if len(images) == 0:
+        return cg_views["cg-cast"] if "cg-cast" in cg_views else np.asarray(content_model.apply(model, views))
+    return adapted_views(model, views, salt)
 
 
 def run_camera(camera, args, out, say):
@@ -131,9 +180,13 @@ def run_camera(camera, args, out, say):
             train = np.setdiff1d(np.arange(len(real.images)), test)
             trained, relit = {}, []
             for count in args.lights:
-                for draw, lights in enumerate(light_subsets(real.illuminants[train], count, args.draws, seed, fold)):
+                for draw, chosen in enumerate(subset_indices(len(train), count, args.draws, seed, fold)):
+                    chosen = chosen[:0] if count == 0 else chosen
+                    lights, content_views = real.illuminants[train][chosen], dict(cg_views)
+                    # cg-scenes: the content model of the same files whose lights the row uses (made when needed)
+                    files_id = hashlib.sha1(np.ascontiguousarray(chosen, np.int64).tobytes()).hexdigest()[:12]
                     for name in args.models:
-                        fitted = model_for(name, camera, profile, lights[:0] if count == 0 else lights)
+                        fitted = model_for(name, camera, profile, lights)
                         if fitted is None:
                             continue
                         for content in args.content:
@@ -144,20 +197,26 @@ def run_camera(camera, args, out, say):
                                 continue
                             start = time.perf_counter()
                             salt = 1000 * seed + 10 * fold + 4
-                            if name == "upi" and content in cg_views:    # as `downstream.experiment`'s upi row
-                                images, labels = sets.upi_set(sets.linear_to_srgb_views(cg_views[content]), seed + 1)
+                            if content == "cg-scenes" and content not in content_views:
+                                content_views[content] = scenes_views(
+                                    camera, profile, real.images[train][chosen], lights, views, cg_views,
+                                    1000 * seed + 10 * fold + 5)
+                            if name == "upi" and content in content_views:    # as `downstream.experiment`'s upi row
+                                images, labels = sets.upi_set(sets.linear_to_srgb_views(content_views[content]),
+                                                              seed + 1)
                             elif name == "upi":
                                 continue
-                            elif content in cg_views:
-                                images, labels = sets.g2r_set(cg_views[content], fitted, salt)
+                            elif content in content_views:
+                                images, labels = sets.g2r_set(content_views[content], fitted, salt)
                             else:
                                 if not relit:   # the training folds' real images, once per fold
                                     views_real = sets.real_to_linear_srgb(real.images[train], real.illuminants[train],
                                                                           profile)
                                     relit.append(np.concatenate([views_real] * -(-args.n // len(views_real)))[:args.n])
                                 images, labels = sets.g2r_set(relit[0], fitted, salt + 4)
+                            content_id = f"{content}:{files_id}" if content == "cg-scenes" else content
                             for estimator in args.estimators:
-                                key = ("upi" if name == "upi" else fingerprint(fitted), content, estimator)
+                                key = ("upi" if name == "upi" else fingerprint(fitted), content_id, estimator)
                                 if key not in trained:
                                     predict = train_estimator(estimator, images, labels, seed=1000 * seed + fold)
                                     trained[key] = angular_error_degrees(predict(real.images[test]),
@@ -259,6 +318,21 @@ def where_lights_sit() -> str:
     return "\n".join(out)
 
 
+def unknown_names(args) -> str:
+    """The first of `--content`, `--estimators`, `--models` that names something unknown, as one
+    line ('' when all are known)."""
+    from g2r_jax.downstream.estimators import ESTIMATORS
+    from g2r_jax.illuminants.choice import KINDS
+
+    models = tuple(dict.fromkeys(("shipped", "upi", *MODELS, *KINDS)))
+    for option, given, known in (("--content", args.content, CONTENTS), ("--estimators", args.estimators, ESTIMATORS),
+                                 ("--models", args.models, models)):
+        unknown = [v for v in given.split(",") if v not in known]
+        if unknown:
+            return f"unknown {option} {', '.join(unknown)}; known: {', '.join(known)}"
+    return ""
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cameras", default=",".join(CAMERAS))
@@ -274,6 +348,10 @@ def main(argv=None) -> int:
     parser.add_argument("--energy", action="store_true", help="print the zero-light models' energy distance "
                         "to each camera's measured lights and stop")
     args = parser.parse_args(argv)
+    problem = unknown_names(args)
+    if problem:
+        print(problem, file=sys.stderr)
+        return 2
     if args.summary:
         print(summary(args.out))
         for content, estimator in sorted({(r["content"], r["estimator"]) for r in map(json.loads, args.out.read_text().splitlines())}):

@@ -41,9 +41,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--illuminant-model", default="auto",
                         choices=["auto", "kernel", "pooled", "gaussian", "mixture", "locus", "prior", "prior-night",
                                  "prior-day-night"],
-                        help="auto: 'kernel' from 10 measured illuminants on (a kernel density of the lights along "
-                             "the camera's Planckian locus, blended with the cross-camera prior; chosen by the "
-                             "downstream measurement of docs validation/illuminant_models), else 'prior'; "
+                        help="auto: 'kernel' from 10 distinct measured illuminants on (a kernel density of the lights "
+                             "along the camera's Planckian locus, blended with the cross-camera prior), else 'pooled' "
+                             "(chosen by the downstream measurement of docs validation/illuminant_models; 'prior' with "
+                             "a night preset where 5 or more lights strongly favour one); the illuminant line says "
+                             "how much the files' lights weigh in the model and how much the rest; "
                              "'gaussian': the published Gaussian + convex hull; 'mixture': Gaussians by BIC + hull; "
                              "'prior': the camera-independent prior of measured day lights (-night / -day-night "
                              "presets); 'pooled': the lights' kernel density on other cameras' measured lights "

@@ -31,12 +31,59 @@ MIN_LIGHTS_FOR_PRESET = 5
 PRESET_MEDIAN_EVIDENCE = 1.0
 
 
+class LightShares(NamedTuple):
+    """Where an illuminant model's probability comes from: the `lights` distinct measured lights
+    (the files') with total weight `files` (0 to 1), the rest (`rest` = 1 - files) from `other`
+    (words: the pooled lights of K other cameras, the cross-camera prior, the calibration locus;
+    '' for a model of the lights alone); `sources`: the pooled model's source cameras."""
+
+    lights: int
+    files: float
+    other: str
+    sources: tuple = ()
+
+    @property
+    def rest(self) -> float:
+        return 1.0 - self.files
+
+
 class IlluminantChoice(NamedTuple):
-    """The fitted model, why it was chosen (one line) and how many distinct measured lights it saw."""
+    """The fitted model, why it was chosen (one line, which states the `shares`), how many distinct
+    measured lights it saw and how much of the model they weigh (`LightShares`)."""
 
     model: _distributions.IlluminantModel
     reason: str
     lights: int
+    shares: LightShares | None = None
+
+
+def shares_words(shares: LightShares) -> str:
+    """'lights: N distinct measured lights weigh X %, <other> Y %' (X + Y = 100 as printed; the
+    other part left out for a model of the lights alone)."""
+    files = round(100 * shares.files)
+    one = shares.lights == 1
+    head = f"lights: {shares.lights} distinct measured light{'' if one else 's'} weigh{'s' if one else ''} {files} %"
+    return f"{head}, {shares.other} {100 - files} %" if shares.other else head
+
+
+def _blend_shares(n: int, other: str, sources=()) -> LightShares:
+    """The shares of n lights' kernels blended with a base measure (`kernel.fit_kernel`:
+    n / (n + n0) on the lights, `kernel.prior_share` on the base)."""
+    return LightShares(n, 1.0 - _kernel.prior_share(n), other, tuple(sources))
+
+
+def _pooled_words(sources) -> str:
+    return f"the pooled lights of {len(sources)} other camera{'' if len(sources) == 1 else 's'}"
+
+
+PRIOR_WORDS = "the cross-camera prior"      # the base measure of 'kernel' and all of 'prior'
+LOCUS_WORDS = "the calibration matrices' locus"
+
+
+def _chosen(model, why: str, shares: LightShares, words: str) -> IlluminantChoice:
+    """The choice whose reason is '<why>: <shares>; <words>' (the shares early, so that a line cut
+    short still carries them)."""
+    return IlluminantChoice(model, f"{why}: {shares_words(shares)}; {words}", shares.lights, shares)
 
 
 def distinct_lights(chromaticities) -> np.ndarray:
@@ -118,38 +165,53 @@ def _prior_choice(points, colour_model, kind, why, auto, dtype) -> IlluminantCho
         preset = PRIOR_KINDS[kind]
         mapped = camera_prior(colour_model, preset, dtype=dtype)
         chosen = _prior_words(preset, mapped)
-    return IlluminantChoice(mapped.model, f"{why}: the cross-camera prior of measured scene lights ({chosen}), "
-                                          "no measured light used", len(points))
+    return _chosen(mapped.model, why, LightShares(len(points), 0.0, PRIOR_WORDS),
+                   f"the cross-camera prior of measured scene lights ({chosen}), no measured light used")
 
 
 def fit_kernel_for_camera(points, colour_model, dtype=np.float32) -> tuple:
     """(model, words) of the kernel model (`kernel.fit_kernel`) of `points` in this camera,
     blended with the prior preset most likely for them."""
+    return _fit_kernel(points, colour_model, dtype)[:2]
+
+
+def _fit_kernel(points, colour_model, dtype) -> tuple:
+    """(model, words, `LightShares`) of `fit_kernel_for_camera`."""
     tangents = camera_locus_tangents(points, colour_model)
     preset, mapped = _best_prior_preset(points, colour_model, dtype)
     along, across = _kernel.choose_bandwidths(points, tangents)
     model = _kernel.fit_kernel(points, tangents, prior=mapped.model, bandwidths=(along, across), dtype=dtype)
-    share = _kernel.PRIOR_PSEUDO_LIGHTS / (len(points) + _kernel.PRIOR_PSEUDO_LIGHTS)
+    share = _kernel.prior_share(len(points))
     how = ("leave-one-out likelihood" if len(points) >= _kernel.MIN_LIGHTS_FOR_CV
            else f"fixed: fewer than {_kernel.MIN_LIGHTS_FOR_CV} lights")
     words = (f"kernel density of the {_count(len(points))} along the camera's Planckian locus "
              f"(bandwidths {along:.3g} along, {across:.3g} across, {how}) with {share:.0%} of the "
              f"cross-camera prior ({_prior_words(preset, mapped)})")
-    return model, words
+    return model, words, _blend_shares(len(points), PRIOR_WORDS)
 
 
 def fit_pooled_for_camera(points, colour_model, exclude=(), dtype=np.float32, base=None) -> tuple:
     """(model, words) of the pooled model (`illuminants.pooled`): the kernel density of `points`
     (N >= 0) blended with other cameras' lights carried into this camera (`exclude`: source
     cameras left out, e.g. the camera under test; `base`: a `pooled.pooled_base` to reuse)."""
-    from g2r_jax.illuminants.pooled import fit_pooled
+    return _fit_pooled(points, colour_model, exclude, dtype, base)[:2]
 
-    return fit_pooled(distinct_lights(points), colour_model, lambda p: camera_locus_tangents(p, colour_model),
-                      exclude=exclude, dtype=dtype, base=base)
+
+def _fit_pooled(points, colour_model, exclude=(), dtype=np.float32, base=None) -> tuple:
+    """(model, words, `LightShares`) of `fit_pooled_for_camera`."""
+    from g2r_jax.illuminants.pooled import fit_pooled, pooled_base
+
+    def tangents_of(p):
+        return camera_locus_tangents(p, colour_model)
+
+    base = pooled_base(colour_model, tangents_of, exclude) if base is None else base
+    points = distinct_lights(points)
+    model, words = fit_pooled(points, colour_model, tangents_of, exclude=exclude, dtype=dtype, base=base)
+    return model, words, _blend_shares(len(points), _pooled_words(base.sources), base.sources)
 
 
 def choose_illuminant_model(chromaticities, colour_model, kind: str = "auto", seed: int = 0,
-                            dtype=np.float32) -> IlluminantChoice:
+                            dtype=np.float32, exclude=()) -> IlluminantChoice:
     """Fit the illuminant model `kind` (one of `KINDS`) to the measured lights.
 
     **Arguments:** `chromaticities`: (N, 2) measured scene lights (r/g, b/g), N >= 0;
@@ -161,11 +223,14 @@ def choose_illuminant_model(chromaticities, colour_model, kind: str = "auto", se
     (`illuminants.prior` with that preset) or 'auto': the kernel model from `MIN_LIGHTS_FOR_KERNEL`
     distinct lights, else 'pooled' (both chosen by the downstream measurement of `MEASUREMENT`),
     or the prior with a night preset where the lights strongly favour one (`_best_prior_preset`);
-    `seed`: the mixture's EM initialisation. Prior lights the camera's matrices cannot carry are left out and counted
-    in the reason (`prior.camera_prior`).
+    `seed`: the mixture's EM initialisation; `exclude`: source cameras of the pool to leave out
+    wherever the model is the pooled one ('pooled', or 'auto' below `MIN_LIGHTS_FOR_KERNEL`
+    lights; e.g. every camera of a data set under test, `pooled.carried_lights`). Prior lights the
+    camera's matrices cannot carry are left out and counted in the reason (`prior.camera_prior`).
 
-    **Returns:** an `IlluminantChoice`. Raises ValueError for an unknown kind, or for 'gaussian' or
-    'mixture' without 3 distinct, non-collinear lights.
+    **Returns:** an `IlluminantChoice`; its reason states how much the files' distinct lights weigh
+    in the model and how much the rest (`LightShares`, `shares_words`). Raises ValueError for an
+    unknown kind, or for 'gaussian' or 'mixture' without 3 distinct, non-collinear lights.
     """
     if kind not in KINDS:
         raise ValueError(f"unknown illuminant model {kind!r}; known: {', '.join(KINDS)}")
@@ -175,38 +240,38 @@ def choose_illuminant_model(chromaticities, colour_model, kind: str = "auto", se
     auto = kind == "auto"
     if auto:
         if n >= MIN_LIGHTS_FOR_KERNEL:
-            model, words = fit_kernel_for_camera(points, colour_model, dtype)
-            return IlluminantChoice(model, f"kernel (auto, {lights} >= {MIN_LIGHTS_FOR_KERNEL}, by the "
-                                           f"downstream measurement in {MEASUREMENT}): {words}", n)
+            model, words, shares = _fit_kernel(points, colour_model, dtype)
+            return _chosen(model, f"kernel (auto, {lights} >= {MIN_LIGHTS_FOR_KERNEL}, by the downstream "
+                                  f"measurement in {MEASUREMENT})", shares, words)
         preset, mapped = _best_prior_preset(points, colour_model, dtype)
         if preset == "day":
-            model, words = fit_pooled_for_camera(points, colour_model, dtype=dtype)
-            return IlluminantChoice(model, f"pooled (auto, {lights} < {MIN_LIGHTS_FOR_KERNEL}, by the downstream "
-                                           f"measurement in {MEASUREMENT}; the lights favour no night preset): "
-                                           f"{words}", n)
+            model, words, shares = _fit_pooled(points, colour_model, exclude, dtype)
+            return _chosen(model, f"pooled (auto, {lights} < {MIN_LIGHTS_FOR_KERNEL}, by the downstream "
+                                  f"measurement in {MEASUREMENT}; the lights favour no night preset)", shares, words)
         kind, why = "prior", (f"prior (auto, {lights} < {MIN_LIGHTS_FOR_KERNEL} strongly favouring the "
                               f"{preset} preset, which the pooled day lights lack)")
     else:
         why = f"{kind} (asked for; {lights})"
     if kind == "locus":
-        return IlluminantChoice(_distributions.fit_locus(colour_model, dtype=dtype),
-                                f"{why}: the calibration matrices' A-D65 CCT locus, no measured light used", n)
+        return _chosen(_distributions.fit_locus(colour_model, dtype=dtype), why, LightShares(n, 0.0, LOCUS_WORDS),
+                       "the calibration matrices' A-D65 CCT locus, no measured light used")
     if kind in PRIOR_KINDS:
         return _prior_choice(points, colour_model, kind, why, auto, dtype)
     if kind == "pooled":
-        model, words = fit_pooled_for_camera(points, colour_model, dtype=dtype)
-        return IlluminantChoice(model, f"{why}: {words}", n)
+        model, words, shares = _fit_pooled(points, colour_model, exclude, dtype)
+        return _chosen(model, why, shares, words)
     if kind == "kernel":
         if n == 0:
             raise ValueError("the kernel illuminant model needs at least one measured illuminant "
                              "(use the prior or the locus model)")
-        model, words = fit_kernel_for_camera(points, colour_model, dtype)
-        return IlluminantChoice(model, f"{why}: {words}", n)
+        model, words, shares = _fit_kernel(points, colour_model, dtype)
+        return _chosen(model, why, shares, words)
     if not _hull_possible(points):
         raise ValueError(f"the {kind} illuminant model needs at least 3 distinct, non-collinear "
                          f"illuminants; got {n} (use the kernel, the prior or the locus model)")
+    alone = LightShares(n, 1.0, "")
     if kind == "gaussian":
-        return IlluminantChoice(_distributions.fit_gaussian(chromaticities, dtype=dtype),
-                                f"{why}: one Gaussian and the lights' convex hull", n)
+        return _chosen(_distributions.fit_gaussian(chromaticities, dtype=dtype), why, alone,
+                       "one Gaussian and the lights' convex hull")
     model = _distributions.fit_mixture(chromaticities, seed=seed, dtype=dtype)
-    return IlluminantChoice(model, f"{why}: {len(model.weights)} Gaussian(s) by BIC and the lights' convex hull", n)
+    return _chosen(model, why, alone, f"{len(model.weights)} Gaussian(s) by BIC and the lights' convex hull")

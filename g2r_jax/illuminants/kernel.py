@@ -33,6 +33,16 @@ BANDWIDTH_GRID = np.geomspace(1e-3, 0.3, 24)
 _POSITIVE = np.array([[-1.0, 0.0, 1e-3], [0.0, -1.0, 1e-3]])   # r/g > 1e-3 and b/g > 1e-3
 
 
+def prior_share(n: int, prior_lights: float = PRIOR_PSEUDO_LIGHTS) -> float:
+    """The weight n0 / (n + n0) of the base measure (the prior, or the pooled lights) in the
+    Dirichlet-process posterior predictive after n distinct lights (Escobar & West, JASA 90, 1995,
+    eq. 4; Blackwell & MacQueen, Ann. Stat. 1(2), 1973): the blend `fit_kernel` makes, and the
+    share `choice.LightShares` reports. 1 for n = 0: no light, only the base measure."""
+    if n < 0 or not prior_lights > 0:
+        raise ValueError(f"prior_share needs n >= 0 lights and n0 > 0 pseudo-lights; got {n}, {prior_lights}")
+    return float(prior_lights) / (n + float(prior_lights))
+
+
 def locus_tangents(points, locus) -> np.ndarray:
     """(N, 2) unit tangents of the polyline `locus` (M, 2), M >= 2, at its point nearest each of
     `points` (N, 2): the direction of the nearest segment, all oriented like locus[-1] - locus[0]."""
@@ -119,7 +129,7 @@ def fit_kernel(chromaticities, tangents, *, prior=None, prior_lights: float = PR
     weights = weights / weights.sum()
     means, covariances, hull = points, kernel_covariances(tangents, along, across), _POSITIVE
     if prior is not None:
-        share = prior_lights / (len(points) + prior_lights)
+        share = prior_share(len(points), prior_lights)
         prior_cholesky = np.asarray(prior.cholesky, np.float64)
         prior_hull = np.asarray(prior.hull, np.float64)
         weights = np.concatenate([(1 - share) * weights, share * np.asarray(prior.weights, np.float64)])

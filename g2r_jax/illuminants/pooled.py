@@ -121,16 +121,25 @@ def carried_lights(colour_model, exclude=(), pool=None, matrices=None) -> Carrie
     return CarriedLights(mapped[usable], kept / kept.sum(), float(weights[~usable].sum()), sources)
 
 
-def pooled_base(colour_model, tangents_of, exclude=(), pool=None):
-    """(model, words): the kernel model of the pooled lights carried into this camera (float64),
-    every source camera with the same total weight; the base measure of `fit_pooled`."""
+class PooledBase(NamedTuple):
+    """The base measure of `fit_pooled`: the kernel model of the carried lights (float64), the
+    words that describe it and the source cameras whose lights it holds."""
+
+    model: object
+    words: str
+    sources: tuple
+
+
+def pooled_base(colour_model, tangents_of, exclude=(), pool=None) -> PooledBase:
+    """The kernel model of the pooled lights carried into this camera (float64), every source
+    camera with the same total weight; the base measure of `fit_pooled` (a `PooledBase`)."""
     carried = carried_lights(colour_model, exclude, pool)
     base = _kernel.fit_kernel(carried.chromaticities, tangents_of(carried.chromaticities),
                               bandwidths=_kernel.DEFAULT_BANDWIDTHS, weights=carried.weights, dtype=np.float64)
     left = (f"; {carried.left_out:.1%} of them left out: this camera's colour matrices give them a non-positive "
             "or non-finite neutral" if carried.left_out > 0 else "")
-    return base, (f"{len(carried.chromaticities)} lights of {len(carried.sources)} measured cameras carried "
-                  f"through this camera's colour matrices{left}")
+    return PooledBase(base, f"{len(carried.chromaticities)} lights of {len(carried.sources)} measured cameras "
+                            f"carried through this camera's colour matrices{left}", carried.sources)
 
 
 def fit_pooled(points, colour_model, tangents_of, exclude=(), pool=None, dtype=np.float32, base=None):
@@ -138,7 +147,7 @@ def fit_pooled(points, colour_model, tangents_of, exclude=(), pool=None, dtype=n
     pooled lights' kernel model as its base measure (module docstring). `tangents_of(points)`
     gives the camera's locus tangents at points (`choice.camera_locus_tangents`); `base`: a
     `pooled_base` result to reuse (it depends only on the camera and `exclude`)."""
-    base, pooled_words = pooled_base(colour_model, tangents_of, exclude, pool) if base is None else base
+    base, pooled_words, _ = pooled_base(colour_model, tangents_of, exclude, pool) if base is None else base
     points = np.asarray(points, np.float64).reshape(-1, 2)
     if len(points) == 0:
         return _distributions._model(np.asarray(base.weights, np.float64), np.asarray(base.means, np.float64),
@@ -146,7 +155,7 @@ def fit_pooled(points, colour_model, tangents_of, exclude=(), pool=None, dtype=n
                                      dtype), f"the kernel density of {pooled_words}"
     along, across = _kernel.choose_bandwidths(points, tangents_of(points))
     model = _kernel.fit_kernel(points, tangents_of(points), prior=base, bandwidths=(along, across), dtype=dtype)
-    share = _kernel.PRIOR_PSEUDO_LIGHTS / (len(points) + _kernel.PRIOR_PSEUDO_LIGHTS)
+    share = _kernel.prior_share(len(points))
     return model, (f"kernel density of the {len(points)} measured light(s) (bandwidths {along:.3g} along, "
                    f"{across:.3g} across) with {share:.0%} of the kernel density of {pooled_words}")
 

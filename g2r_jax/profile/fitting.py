@@ -277,8 +277,8 @@ def fit_profile(infos: list[DngInfo], *, name: str = "fitted", illuminant_model:
         neutrals = [n for n in (as_shot_neutral(i) for i in infos) if n is not None]
         chromaticities = (_illuminants.neutral_to_chromaticity(np.stack(neutrals)) if neutrals
                           else np.zeros((0, 2)))
-    illuminants, illuminant_reason, _ = _illuminant_choice.choose_illuminant_model(
-        chromaticities, colour_model, illuminant_model, seed, dtype)
+    chosen = _illuminant_choice.choose_illuminant_model(chromaticities, colour_model, illuminant_model, seed, dtype)
+    illuminants, illuminant_reason = chosen.model, chosen.reason   # the reason states the lights' shares
     noise_source = ""
     black, white, _ = levels_from_infos(infos)   # the CLI reports the note
     if noise is None:
