@@ -1,13 +1,13 @@
 """The few-DNG regime (issue 33): an illuminant estimator trained on g2r_jax RAW whose lights come from
 0 (the profile as shipped), 1, 3, 5, 10, 25 or all of the camera's measured lights, per illuminant
-model, tested on the camera's real NUS images (the protocol of `g2r_jax.downstream.experiment`:
+model, tested on the camera's real NUS images (the protocol of `g2r_jax.downstream.illuminant.experiment`:
 folds by `measure.folds_of`, training lights from the training folds only, tested on the held-out fold).
 
 Rows: `shipped` (the profile as given, lights 0), and each model of `--models` at each count of
 `--lights`: `prior` and `locus` use no light (lights 0 only); `kernel` needs one; `auto` is what
 g2r-fit-profile fits; `pooled` is `illuminants.pooled` with the camera under test left out of the
 pool (leave-one-camera-out: none of its lights informs its own prior); `upi` (lights 0, CG
-content only) is UPI's random cameras on the same views, as `downstream.experiment`'s upi row;
+content only) is UPI's random cameras on the same views, as `downstream.illuminant.experiment`'s upi row;
 `pooled-gs` leaves all nine
 NUS cameras out (only the Gehler-Shi lights: other scenes, since the NUS cameras shot many of the
 same scenes, so `pooled` may know the test camera's scenes' lights from its siblings). Each count below all is
@@ -111,8 +111,8 @@ def run_camera(camera, args, out, say):
     """Every row of one camera; one JSON line per finished result."""
     from PIL import Image
 
-    from g2r_jax.downstream import real_sets, training_sets as sets
-    from g2r_jax.downstream.estimators import train_estimator
+    from g2r_jax.downstream.base import real_sets, training_sets as sets
+    from g2r_jax.downstream.illuminant.estimators import train_estimator
     from g2r_jax.measure import angular_error_degrees, folds_of
 
     done = _done(out)
@@ -144,7 +144,7 @@ def run_camera(camera, args, out, say):
                                 continue
                             start = time.perf_counter()
                             salt = 1000 * seed + 10 * fold + 4
-                            if name == "upi" and content in cg_views:    # as `downstream.experiment`'s upi row
+                            if name == "upi" and content in cg_views:    # as `downstream.illuminant.experiment`'s upi row
                                 images, labels = sets.upi_set(sets.linear_to_srgb_views(cg_views[content]), seed + 1)
                             elif name == "upi":
                                 continue
