@@ -63,6 +63,22 @@ def test_damaged_entries_are_retrained_and_the_store_keeps_its_cap(tmp_path):
     assert key_of("a", np.zeros(3)) != key_of("a", np.zeros(3, np.float32))
 
 
+def test_the_code_digest_covers_the_whole_package():
+    """`code_digest` reads every source file of `g2r_jax` (a changed line anywhere retrains), not
+    only the sub-package `cache` sits in (issue 52 moved it to `downstream/base/`)."""
+    import hashlib
+    from pathlib import Path
+
+    import g2r_jax
+    from g2r_jax.downstream.base.cache import code_digest
+
+    root = Path(g2r_jax.__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(path.read_bytes())
+    assert code_digest() == digest.hexdigest()
+
 def test_the_isp_task_reuses_its_stored_networks(monkeypatch, tmp_path):
     """A second ISP run on the same inputs trains no UNet and gives the same measures and figure."""
     import g2r_jax
