@@ -7,7 +7,7 @@ process after a warm-up run (so compilation is not counted), with each run's pro
     python benchmarks/check_speed.py [--camera Canon600D] [--repeats 1]
     python benchmarks/check_speed.py --second-run [--camera Canon600D]
 
-`--second-run` (issue 52): the check with the store of finished trainings (`downstream.cache`, an
+`--second-run` (issue 52): the check with the store of finished trainings (`downstream.base.cache`, an
 empty folder), run twice on the same inputs: the first run fills it, the second reuses it; both
 wall times and product rows printed side by side.
 """
@@ -62,7 +62,7 @@ def main(argv=None) -> int:
 def _second_run(dngs: Path, cg: Path, store: Path) -> int:
     """The check twice with one store: wall time and product row of each run."""
     from g2r_jax.downstream import default_rows, run_check
-    from g2r_jax.downstream.cache import DownstreamCache
+    from g2r_jax.downstream.base.cache import DownstreamCache
 
     for label in ("first run (empty store)", "second run (same inputs)"):
         cache = DownstreamCache(store)

@@ -3,7 +3,7 @@ is it each pixel's chroma, or each frame's grey-world cast?
 
 Variants of the CARLA views (linear sRGB), each made RAW by g2r_jax under lights fitted to the
 inner two thirds of a NUS camera's training folds, an estimator trained on it and tested on the
-inner third (`g2r_jax.downstream.content_rows.inner_split`: the test fold is not read at all):
+inner third (`g2r_jax.downstream.illuminant.content_rows.inner_split`: the test fold is not read at all):
 - `identity`; `chroma@S` (x' = Y + S (x - Y): the pixels' chroma *and* the frame's mean cast scaled
   by S); `cast@C` (only the frame's grey-world cast, by a gain per channel, toward neutral: family
   'cast'); `cast` (the family as fitted without labels to the inner two thirds' thumbnails: each
@@ -143,8 +143,9 @@ def run(cameras, variants, estimators, seed: int, n: int, files: int | None = No
     (as a user with few DNGs; the lights still come from all of them)."""
     from PIL import Image
 
-    from g2r_jax.downstream import content_rows, experiment, real_sets, training_sets
-    from g2r_jax.downstream.estimators import train_estimator
+    from g2r_jax.downstream.base import product, real_sets, training_sets
+    from g2r_jax.downstream.illuminant import content_rows
+    from g2r_jax.downstream.illuminant.estimators import train_estimator
     from g2r_jax.measure import angular_error_degrees, folds_of
 
     linear = training_sets.linear_images([np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))])
@@ -159,13 +160,13 @@ def run(cameras, variants, estimators, seed: int, n: int, files: int | None = No
         for fold, test in enumerate(folds_of(len(real.images), 3, 0, groups=groups)):
             train = np.setdiff1d(np.arange(len(real.images)), test)
             inner, validate = content_rows.inner_split(train, groups, seed, fold)
-            fitted = experiment.fitted_illuminants(profile, real.illuminants[inner], "auto", seed)
+            fitted = product.fitted_illuminants(profile, real.illuminants[inner], "auto", seed)
             scenes_of = inner if files is None else np.random.default_rng(60_000 + 100 * seed + fold).choice(
                 inner, size=min(files, len(inner)), replace=False)
             for fitted_family in {"cast", "scenes"} & set(variants):    # fitted to the inner two thirds, per fold
-                model = content_rows.candidate_model(fitted_family, real.images[scenes_of], real.illuminants[scenes_of],
-                                                     views, profile)
-                adapted[fitted_family] = content_rows.adapted_views(model, views, 50_000 + 100 * seed + fold)
+                model = product.candidate_model(fitted_family, real.images[scenes_of], real.illuminants[scenes_of],
+                                                views, profile)
+                adapted[fitted_family] = product.adapted_views(model, views, 50_000 + 100 * seed + fold)
             for name in variants:
                 if name.startswith("draw") or name.startswith(("cast+tone", "cast+top")):
                     adapted[name] = drawn_views(name, views, real.images[inner], real.illuminants[inner], profile,

@@ -6,7 +6,7 @@ Protocol, per camera and seed (the 3 folds of the downstream benchmark, `g2r_jax
 - the lights are fitted to the training folds' measured illuminants ('fitted' of the downstream
   benchmark: what a folder of DNGs gives `g2r-fit-profile`);
 - the family of the content model is chosen on the training folds only
-  (`g2r_jax.downstream.content_rows.fold_content_model`, which `g2r-downstream --content-rows`
+  (`g2r_jax.downstream.illuminant.content_rows.fold_content_model`, which `g2r-downstream --content-rows`
   uses too): they are split again (two thirds / one third, seeded, duplicate files kept
   together); each candidate family is fitted to the inner two thirds'
   thumbnails (white-balanced by their light, as a DNG's AsShotNeutral would), g2r_jax RAW of the
@@ -53,8 +53,8 @@ def _say(message: str) -> None:
 
 
 def _row_sets(real, train, views, srgb_views, model, fitted, seed, fold):
-    from g2r_jax.downstream import training_sets
-    from g2r_jax.downstream.content_rows import adapted_views
+    from g2r_jax.downstream.base import training_sets
+    from g2r_jax.downstream.base.product import adapted_views
 
     salt = 1000 * seed + 10 * fold + 4
     adapted = adapted_views(model, views, salt + 1)   # the library's draws (`content_rows._adapted`): one implementation
@@ -69,8 +69,9 @@ def run_camera(job) -> dict:
     """One camera: errors per (row, estimator) per seed, and the models chosen per fold."""
     from PIL import Image
 
-    from g2r_jax.downstream import content_rows, experiment, real_sets, training_sets
-    from g2r_jax.downstream.estimators import train_estimator
+    from g2r_jax.downstream.base import product, real_sets, training_sets
+    from g2r_jax.downstream.illuminant import content_rows
+    from g2r_jax.downstream.illuminant.estimators import train_estimator
     from g2r_jax.measure import angular_error_degrees, folds_of
     from g2r_jax.runtime import compile_cache
 
@@ -89,17 +90,17 @@ def run_camera(job) -> dict:
         for fold, test in enumerate(folds_of(len(real.images), 3, 0, groups=getattr(real, "groups", None))):
             train = np.setdiff1d(np.arange(len(real.images)), test)
             if fixed:
-                choice = content_rows.FoldChoice(model=content_rows.candidate_model(
+                choice = content_rows.FoldChoice(model=product.candidate_model(
                     fixed, real.images[train], real.illuminants[train], views, profile), name=fixed, errors={})
             else:
                 choice = content_rows.fold_content_model(
-                    real, train, views, profile, lambda lights: experiment.fitted_illuminants(profile, lights, "auto", seed),
+                    real, train, views, profile, lambda lights: product.fitted_illuminants(profile, lights, "auto", seed),
                     candidates=("identity",) + families, estimator=select_estimator, seed=seed, fold=fold)
             family, selection, model = choice.name, choice.errors, choice.model
             chosen.append({"seed": seed, "fold": fold, "family": family, "selection_errors": selection,
                            "chroma_scale": float(model.chroma_scale), "tone_power": float(model.tone_power),
                            "cast_scale": float(model.cast_scale)})
-            fitted = experiment.fitted_illuminants(profile, real.illuminants[train], "auto", seed)
+            fitted = product.fitted_illuminants(profile, real.illuminants[train], "auto", seed)
             for row, build in _row_sets(real, train, views, srgb_views, model, fitted, seed, fold).items():
                 images, labels = build()
                 for estimator in estimators:

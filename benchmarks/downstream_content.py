@@ -1,5 +1,5 @@
 """What sets the CG frames apart from real scenes, as the estimator sees them: the content
-statistics of `g2r_jax.downstream.content` for the CARLA views made RAW with each NUS camera's
+statistics of `g2r_jax.downstream.illuminant.content` for the CARLA views made RAW with each NUS camera's
 fitted profile, against the camera's real thumbnails and against those thumbnails made RAW again
 by g2r_jax (what the simulation alone moves a statistic).
 
@@ -30,7 +30,8 @@ from downstream_nus import CAMERAS, CARLA, NUS, camera_profile  # noqa: E402
 def main(argv=None) -> int:
     from PIL import Image
 
-    from g2r_jax.downstream import content, content_rows, experiment, real_sets, training_sets
+    from g2r_jax.downstream.base import product, real_sets, training_sets
+    from g2r_jax.downstream.illuminant import content
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--views", type=int, default=500)
@@ -51,9 +52,9 @@ def main(argv=None) -> int:
         profile = camera_profile(camera)
         adapted = views
         if args.content_model != "none":
-            model = content_rows.candidate_model(args.content_model, real.images, real.illuminants, views, profile)
-            adapted = content_rows.adapted_views(model, views, args.seed)
-        synthetic = training_sets.g2r_set(adapted, experiment.fitted_illuminants(profile, real.illuminants), args.seed)
+            model = product.candidate_model(args.content_model, real.images, real.illuminants, views, profile)
+            adapted = product.adapted_views(model, views, args.seed)
+        synthetic = training_sets.g2r_set(adapted, product.fitted_illuminants(profile, real.illuminants), args.seed)
         round_trip = training_sets.g2r_set(training_sets.real_to_linear_srgb(real.images, real.illuminants, profile),
                                            profile, args.seed, neutrals=real.illuminants)
         rows = {r["statistic"]: r for r in content.compare(synthetic, (real.images, real.illuminants), round_trip)}

@@ -1,4 +1,4 @@
-"""The denoising downstream test (Graphics2RAW Table 1 protocol, `g2r_jax.downstream.denoising`)
+"""The denoising downstream test (Graphics2RAW Table 1 protocol, `g2r_jax.downstream.denoising.burst_check`)
 on a burst: prints the table (PSNR on WhiteLevel - BlackLevel, the reference's own noise taken
 out), the noise models and the timings.
 
@@ -13,7 +13,7 @@ from the profile's noise at --iso in a temporary folder, and its known noise is 
 the rows' models. `--dim`: instead, issue 34's kind of burst: 10-bit, black 60, white 1023,
 ISO 100, the scene 13-60 DN above black and defocused, photon-transfer noise of a known truth
 (shot 5.2e-4, read 2.4e-6 normalised), the profile given that truth. Without --steps the step
-count is chosen on a validation split of the burst (`denoising.choose_steps`).
+count is chosen on a validation split of the burst (`burst_check.choose_steps`).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def _nus_scenes_model(camera: str, profile):
 
     from g2r_jax import content
     from g2r_jax.colour.dng_model import xy_to_camera_neutral
-    from g2r_jax.downstream import real_sets
+    from g2r_jax.downstream.base import real_sets
 
     real = real_sets.load_nus(DEFAULT_CG.parents[1] / "estimation" / "nus" / f"{camera}.npz")
     stats = content.statistics(content.white_balanced_camera_rgb(real.images, real.illuminants), source=camera)
@@ -75,7 +75,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
 
     import g2r_jax
-    from g2r_jax.downstream import bursts, denoising
+    from g2r_jax.downstream.denoising import burst_check, bursts
     from g2r_jax.profile import schema
     from g2r_jax.pipeline import without_content
 
@@ -126,11 +126,11 @@ def main(argv=None):
             profile = schema.replace(profile, content=_nus_scenes_model(args.content_scenes, profile))
             print(f"the rows' profile applies the 'scenes' content model of {args.content_scenes}'s NUS scenes")
         read_s = time.perf_counter() - started
-        result = denoising.run_burst_check(burst, profile, cg, rows=tuple(args.rows.split(",")), contents=contents,
-                                           seeds=args.seeds,
-                                           steps=args.steps, max_steps=args.max_steps, folds=args.folds,
-                                           cg_count=args.cg, workers=args.workers,
-                                           progress=lambda line: print("  " + line, flush=True))
+        result = burst_check.run_burst_check(burst, profile, cg, rows=tuple(args.rows.split(",")), contents=contents,
+                                             seeds=args.seeds,
+                                             steps=args.steps, max_steps=args.max_steps, folds=args.folds,
+                                             cg_count=args.cg, workers=args.workers,
+                                             progress=lambda line: print("  " + line, flush=True))
     total = time.perf_counter() - started
     print()
     print(result.summary())

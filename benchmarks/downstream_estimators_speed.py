@@ -1,4 +1,4 @@
-"""CPU cost of training the downstream illuminant estimators (g2r_jax.downstream.estimators).
+"""CPU cost of training the downstream illuminant estimators (g2r_jax.downstream.illuminant.estimators).
 
 The NUS benchmark trains each estimator about 800 times within 40 minutes on two cores, so one
 training must cost about a second of CPU. This measures, on `--n` thumbnails (the NUS Canon600D
@@ -52,7 +52,7 @@ def main() -> int:
     args = parser.parse_args()
 
     import jax
-    from g2r_jax.downstream import estimators as est
+    from g2r_jax.downstream.illuminant import estimators as est
 
     images, lights, source = thumbnails(args.n, 0)
     print(f"{args.n} thumbnails ({source}); CnnConfig: {est.CnnConfig()}")
@@ -69,7 +69,7 @@ def main() -> int:
     print(f"cnn: train_many of {args.many} sets {many:.2f} s CPU ({many / args.many:.2f} per model) "
           f"against {one * args.many:.2f} s for {args.many} separate trainings")
 
-    from g2r_jax.downstream import training
+    from g2r_jax.downstream.base import training
 
     matrix_product = est.SameConv.__call__
 

@@ -2,7 +2,7 @@
 cameras: a UNet learns packed RAW -> display sRGB (the target: LibRaw at each DNG's as-shot white
 balance, `g2r_jax.io.reference_render`) on synthetic pairs made from the CARLA CG frames
 (UPI, g2r_jax fitted / without content model / shipped / one DNG) or on the real training folds,
-and is tested on the real held-out fold (`g2r_jax.downstream.isp.run_isp_task`).
+and is tested on the real held-out fold (`g2r_jax.downstream.isp.task.run_isp_task`).
 
 Real pairs: each camera's 64 x 64 NUS thumbnails (../shared/data/estimation/nus/<camera>.npz)
 written as 64 x 64 Bayer DNGs of the camera by our own writer (`isp_pairs.thumbnail_sources`:
@@ -62,9 +62,9 @@ def content_part(part: str) -> None:
     frame is darkened to) or only its brightness ('brightness': every scene's cast the median one
     of the 'cast' model fitted to the same files)."""
     from g2r_jax import content
-    from g2r_jax.downstream import content_rows
+    from g2r_jax.downstream.base import product
 
-    fitted = content_rows.candidate_model
+    fitted = product.candidate_model
 
     def variant(name, images, lights, views, profile):
         model = fitted(name, images, lights, views, profile)
@@ -78,13 +78,14 @@ def content_part(part: str) -> None:
         return content.content_model(family="scenes", scene_casts=casts, scene_brightness=brightness,
                                      source=f"{model.source} ({part} only)")
 
-    content_rows.candidate_model = variant
+    product.candidate_model = variant
 
 
 def run_camera(name: str, args, cg, say):
     """{'all': IspResult, 1: IspResult of the curve, ...} of one camera."""
-    from g2r_jax.downstream import isp, isp_pairs, real_sets
-    from g2r_jax.downstream.isp_net import IspTraining
+    from g2r_jax.downstream.base import real_sets
+    from g2r_jax.downstream.isp import pairs as isp_pairs, task as isp
+    from g2r_jax.downstream.isp.net import IspTraining
 
     real = real_sets.load_nus(NUS / f"{name}.npz")
     profile, shipped = profiles(name)
@@ -179,7 +180,7 @@ def targets_table(document) -> str:
 
 
 def _arguments(argv):
-    from g2r_jax.downstream.isp_net import IspTraining
+    from g2r_jax.downstream.isp.net import IspTraining
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cameras", default=",".join(CAMERAS))

@@ -1,7 +1,7 @@
 """The paper's illuminant-estimation experiment on real images (Graphics2RAW Table 2 / S1 / S4),
 for the nine NUS cameras: estimators trained on synthetic RAW of the CARLA CG frames (UPI,
 published recipe, g2r_jax shipped / fitted / one DNG), on the real training folds, and on the
-controls, tested on the real images of each camera (`g2r_jax.downstream.experiment`).
+controls, tested on the real images of each camera (`g2r_jax.downstream.illuminant.experiment`).
 
 Data: ../shared/data/estimation/nus/<camera>.npz (real thumbnails, measured illuminants) and
 ../shared/data/cg/carla/*.png. Profiles: the shipped profile of the camera; Canon1DsMkIII,
@@ -21,7 +21,7 @@ results are written after each camera (atomically, per-image errors included), a
 and started again with the same --json keeps the cameras it holds and runs the others. `--labelled`
 (issue 48, augmentation): each camera once per number of labelled real files that 'real' and the
 augmented rows ('real_plus_fitted', 'real_plus_upi': the recipe chosen on the training files,
-`g2r_jax.downstream.augmentation`) train on, drawn from the training folds; then the curve
+`g2r_jax.downstream.illuminant.augmentation`) train on, drawn from the training folds; then the curve
 (mean of the cameras per row and number).
 """
 
@@ -80,7 +80,7 @@ def other_camera(name: str, cameras) -> str:
 
 
 def main(argv=None) -> int:
-    from g2r_jax.downstream import experiment, report
+    from g2r_jax.downstream.illuminant import experiment, reporting
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cameras", default=",".join(CAMERAS))
@@ -133,8 +133,8 @@ def main(argv=None) -> int:
     lines = []
     for name, result in results.items():
         block = [f"## {name} ({len(result.errors[(rows[0], estimators[0])][0])} real images; {result.seconds:.0f} s)",
-                 "", report.table(result), ""]
-        block += [report.sentence(result, e) for e in estimators] + [""]
+                 "", reporting.table(result), ""]
+        block += [reporting.sentence(result, e) for e in estimators] + [""]
         lines += block
     print("\n".join(lines), flush=True)
     summary = summary_table(results, rows, estimators)
@@ -189,13 +189,13 @@ def camera_curve_table(results, estimator: str) -> str:
 
 def _write_json(args, results, estimators, seconds) -> None:
     """The results so far as JSON (atomically): summaries, decompositions and per-image errors."""
-    from g2r_jax.downstream import report
+    from g2r_jax.downstream.illuminant import reporting
     from g2r_jax.io.atomic import atomic_write_bytes
 
     if not args.json:
         return
     args.json.parent.mkdir(parents=True, exist_ok=True)
-    document = {name: {**r.to_dict(), "decomposition": {e: report.decomposition(r, e) for e in estimators},
+    document = {name: {**r.to_dict(), "decomposition": {e: reporting.decomposition(r, e) for e in estimators},
                        "errors": {f"{row}/{e}": [np.asarray(a).tolist() for a in per_seed]
                                   for (row, e), per_seed in r.errors.items()}}
                 for name, r in results.items()}
@@ -204,7 +204,7 @@ def _write_json(args, results, estimators, seconds) -> None:
 
 def _earlier(path) -> dict:
     """The results of an earlier run's --json (per-image errors rebuilt into `ExperimentResult`s)."""
-    from g2r_jax.downstream.experiment import ExperimentResult
+    from g2r_jax.downstream.illuminant.experiment import ExperimentResult
 
     if not path or not Path(path).is_file():
         return {}
@@ -229,7 +229,8 @@ def run_camera(job):
     """One camera's experiment (a worker of --jobs)."""
     from PIL import Image
 
-    from g2r_jax.downstream import experiment, real_sets
+    from g2r_jax.downstream.base import real_sets
+    from g2r_jax.downstream.illuminant import experiment
     from g2r_jax.runtime import compile_cache
 
     compile_cache.enable(program="g2r_jax-downstream")
@@ -263,7 +264,7 @@ def curve_table(results, rows, estimators) -> str:
 
 
 def summary_table(results, rows, estimators) -> str:
-    from g2r_jax.downstream.experiment import ROWS
+    from g2r_jax.downstream.illuminant.experiment import ROWS
 
     head = "| camera | estimator | " + " | ".join(ROWS[r] for r in rows) + " | g2r_jax fitted vs UPI |"
     out = [head, "|---|---|" + "---|" * (len(rows) + 1)]

@@ -1,13 +1,13 @@
 """The few-DNG regime (issue 33): an illuminant estimator trained on g2r_jax RAW whose lights come from
 0 (the profile as shipped), 1, 3, 5, 10, 25 or all of the camera's measured lights, per illuminant
-model, tested on the camera's real NUS images (the protocol of `g2r_jax.downstream.experiment`:
+model, tested on the camera's real NUS images (the protocol of `g2r_jax.downstream.illuminant.experiment`:
 folds by `measure.folds_of`, training lights from the training folds only, tested on the held-out fold).
 
 Rows: `shipped` (the profile as given, lights 0), and each model of `--models` at each count of
 `--lights`: `prior` and `locus` use no light (lights 0 only); `kernel` needs one; `auto` is what
 g2r-fit-profile fits; `pooled` is `illuminants.pooled` with the camera under test left out of the
 pool (leave-one-camera-out: none of its lights informs its own prior); `upi` (lights 0, CG
-content only) is UPI's random cameras on the same views, as `downstream.experiment`'s upi row;
+content only) is UPI's random cameras on the same views, as `downstream.illuminant.experiment`'s upi row;
 `pooled-gs` leaves all nine
 NUS cameras out (only the Gehler-Shi lights: other scenes, since the NUS cameras shot many of the
 same scenes, so `pooled` may know the test camera's scenes' lights from its siblings); `auto-gs`
@@ -123,7 +123,7 @@ def scenes_content(camera, profile, images, lights, views):
     from unittest import mock
 
     from g2r_jax.content import prior as content_prior
-    from g2r_jax.downstream.content_rows import FITTED, candidate_model
+    from g2r_jax.downstream.base.product import FITTED, candidate_model
 
     if len(images) == 0:
         return shipped_content_model(camera, profile.colour)
@@ -148,7 +148,7 @@ def scenes_views(camera, profile, images, lights, views, cg_views, salt):
     drawn per view from `salt`); with no file the `cg-cast` views (the shipped profile's model),
     applied as `cg-cast` applies it."""
     from g2r_jax import content as content_model
-    from g2r_jax.downstream.content_rows import adapted_views
+    from g2r_jax.downstream.base.product import adapted_views
 
     model = scenes_content(camera, profile, images, lights, views)
     if len(images) == 0:
@@ -160,8 +160,8 @@ def run_camera(camera, args, out, say):
     """Every row of one camera; one JSON line per finished result."""
     from PIL import Image
 
-    from g2r_jax.downstream import real_sets, training_sets as sets
-    from g2r_jax.downstream.estimators import train_estimator
+    from g2r_jax.downstream.base import real_sets, training_sets as sets
+    from g2r_jax.downstream.illuminant.estimators import train_estimator
     from g2r_jax.measure import angular_error_degrees, folds_of
 
     done = _done(out)
@@ -201,7 +201,7 @@ def run_camera(camera, args, out, say):
                                 content_views[content] = scenes_views(
                                     camera, profile, real.images[train][chosen], lights, views, cg_views,
                                     1000 * seed + 10 * fold + 5)
-                            if name == "upi" and content in content_views:    # as `downstream.experiment`'s upi row
+                            if name == "upi" and content in content_views:    # as `downstream.illuminant.experiment`'s upi row
                                 images, labels = sets.upi_set(sets.linear_to_srgb_views(content_views[content]),
                                                               seed + 1)
                             elif name == "upi":
@@ -321,7 +321,7 @@ def where_lights_sit() -> str:
 def unknown_names(args) -> str:
     """The first of `--content`, `--estimators`, `--models` that names something unknown, as one
     line ('' when all are known)."""
-    from g2r_jax.downstream.estimators import ESTIMATORS
+    from g2r_jax.downstream.illuminant.estimators import ESTIMATORS
     from g2r_jax.illuminants.choice import KINDS
 
     models = tuple(dict.fromkeys(("shipped", "upi", *MODELS, *KINDS)))

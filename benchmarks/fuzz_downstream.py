@@ -72,7 +72,7 @@ def make_seeds(folder: Path) -> dict:
 
     import g2r_jax
     from g2r_jax.audit import scenes, simulate
-    from g2r_jax.downstream.bursts import write_synthetic_burst
+    from g2r_jax.downstream.denoising.bursts import write_synthetic_burst
     from g2r_jax.io.dng_read import read_dng_info, read_dng_pixels
     from g2r_jax.io.dng_write import write_dng
 

@@ -43,7 +43,7 @@ from g2r_jax.colour import charts as _charts  # noqa: E402
 from g2r_jax.colour import conversions as _colour  # noqa: E402
 from g2r_jax.colour import chart_fit as colour_fit  # noqa: E402
 from g2r_jax.pipeline import simulate_patches  # noqa: E402
-from g2r_jax.downstream.upi import XYZ_TO_CAMERAS  # noqa: E402
+from g2r_jax.downstream.base.upi import XYZ_TO_CAMERAS  # noqa: E402
 from g2r_jax.measure import angular_error_degrees  # noqa: E402
 
 TRAIN_PER_FOLD = 2000

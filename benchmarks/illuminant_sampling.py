@@ -21,7 +21,7 @@ def main(argv=None) -> int:
     import jax
 
     import g2r_jax
-    from g2r_jax.downstream import real_sets
+    from g2r_jax.downstream.base import real_sets
     from g2r_jax.illuminants import distributions
     from g2r_jax.profile.fitting import illuminant_model_for
 

@@ -44,7 +44,7 @@ def write_camera_dngs(camera: str, folder, count: int | None = None) -> list[Pat
     (created); returns their paths."""
     import downstream_nus
 
-    from g2r_jax.downstream.real_sets import load_nus
+    from g2r_jax.downstream.base.real_sets import load_nus
     from g2r_jax.io.dng_write import write_dng
     from g2r_jax.profile.dng_tags import dng_info_for
 

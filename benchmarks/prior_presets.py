@@ -57,7 +57,7 @@ def share_leaving_day(ratios, n, draws, rng, median_rule: bool) -> float:
 
 def main(argv=None) -> int:
     import g2r_jax
-    from g2r_jax.downstream import real_sets
+    from g2r_jax.downstream.base import real_sets
     from g2r_jax.illuminants.distributions import neutral_to_chromaticity
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

@@ -19,6 +19,6 @@ def shared_data() -> Path:
 
 @pytest.fixture(autouse=True)
 def _own_downstream_cache(tmp_path, monkeypatch):
-    """Each test gets an empty store of finished downstream trainings (`downstream.cache`): no test
+    """Each test gets an empty store of finished downstream trainings (`downstream.base.cache`): no test
     reuses another's (or a user's) results."""
     monkeypatch.setenv("G2R_JAX_DOWNSTREAM_CACHE", str(tmp_path / "downstream-cache"))

@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from g2r_jax.downstream import augmentation as aug
-from g2r_jax.downstream import estimators as est
+from g2r_jax.downstream.illuminant import augmentation as aug
+from g2r_jax.downstream.illuminant import estimators as est
 from g2r_jax.measure import angular_error_degrees
 from test_downstream_estimators import synthetic_scenes
 
@@ -132,7 +132,7 @@ def test_experiment_rows_see_the_labelled_files_of_the_training_folds(monkeypatc
     g2r_jax RAW is worth."""
     from test_downstream_content_rows import _cg, _fake_sets, _real_set
 
-    from g2r_jax.downstream import experiment, report
+    from g2r_jax.downstream.illuminant import experiment, reporting
     from g2r_jax.measure import folds_of
 
     real, profile = _real_set(count=18)
@@ -159,7 +159,7 @@ def test_experiment_rows_see_the_labelled_files_of_the_training_folds(monkeypatc
     for k, files in enumerate(seen["real"]):
         assert len(files) == 6 and not files & set(tests[k % 3].tolist())
     assert result.recipes[("real_plus_fitted", "moments")] == ["real"] * 6 and result.labelled == 6
-    phrase = report.augmentation_phrase(result, "moments")
+    phrase = reporting.augmentation_phrase(result, "moments")
     assert phrase.startswith("with 6 labelled files, adding g2r_jax RAW") and "recipe chosen" in phrase
     assert result.to_dict()["recipes"]["real_plus_fitted/moments"] == ["real"] * 6
 
@@ -167,7 +167,7 @@ def test_experiment_rows_see_the_labelled_files_of_the_training_folds(monkeypatc
 def test_the_labelled_curve_has_a_point_per_count_and_draws_it(monkeypatch, tmp_path):
     from test_downstream_content_rows import _cg, _fake_sets, _real_set
 
-    from g2r_jax.downstream import experiment, labelled_curve
+    from g2r_jax.downstream.illuminant import experiment, labelled_curve
 
     real, profile = _real_set(count=30)
     sizes = []

@@ -11,7 +11,7 @@ import pytest
 from downstream_helpers import write_camera_folders
 
 from g2r_jax.cli import downstream
-from g2r_jax.downstream.cache import DownstreamCache, key_of
+from g2r_jax.downstream.base.cache import DownstreamCache, key_of
 
 
 @pytest.fixture(scope="module")
@@ -63,25 +63,41 @@ def test_damaged_entries_are_retrained_and_the_store_keeps_its_cap(tmp_path):
     assert key_of("a", np.zeros(3)) != key_of("a", np.zeros(3, np.float32))
 
 
+def test_the_code_digest_covers_the_whole_package():
+    """`code_digest` reads every source file of `g2r_jax` (a changed line anywhere retrains), not
+    only the sub-package `cache` sits in (issue 52 moved it to `downstream/base/`)."""
+    import hashlib
+    from pathlib import Path
+
+    import g2r_jax
+    from g2r_jax.downstream.base.cache import code_digest
+
+    root = Path(g2r_jax.__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(path.read_bytes())
+    assert code_digest() == digest.hexdigest()
+
 def test_the_isp_task_reuses_its_stored_networks(monkeypatch, tmp_path):
     """A second ISP run on the same inputs trains no UNet and gives the same measures and figure."""
     import g2r_jax
-    from g2r_jax.downstream import isp, isp_net
+    from g2r_jax.downstream.isp import net, task
     from test_downstream_isp import _sources
 
-    from g2r_jax.downstream.real_sets import RealSet
+    from g2r_jax.downstream.base.real_sets import RealSet
 
     profile = g2r_jax.load_profile("NikonD40")
     sources, images, lights = _sources(profile, 6)
     real = RealSet(name="tiny", images=images, illuminants=lights / lights.sum(1, keepdims=True))
     cg = [(np.random.default_rng(k).random((40, 48, 3)) * 255).astype(np.uint8) for k in range(2)]
-    training = isp_net.IspTraining(steps=2, steps_per_round=2, batch=2, width=2)
+    training = net.IspTraining(steps=2, steps_per_round=2, batch=2, width=2)
     trained = []
-    original = isp_net.train_many
-    monkeypatch.setattr(isp_net, "train_many", lambda sets, *a, **k: trained.append(len(sets)) or original(sets, *a, **k))
+    original = net.train_many
+    monkeypatch.setattr(net, "train_many", lambda sets, *a, **k: trained.append(len(sets)) or original(sets, *a, **k))
     cache = DownstreamCache(tmp_path / "store")
-    run = lambda rows: isp.run_isp_task(real, profile, cg, rows=rows, seeds=(0,), n=4, dngs=sources, training=training,
-                                        cache=cache)
+    run = lambda rows: task.run_isp_task(real, profile, cg, rows=rows, seeds=(0,), n=4, dngs=sources, training=training,
+                                         cache=cache)
     first = run(("upi", "real"))
     assert sum(trained) == 6 and cache.hits == 0
     again = run(("upi", "real"))
@@ -95,19 +111,19 @@ def test_the_isp_task_reuses_its_stored_networks(monkeypatch, tmp_path):
 
 def test_the_burst_check_reuses_its_stored_denoisers(monkeypatch, tmp_path):
     import g2r_jax
-    from g2r_jax.downstream import bursts, denoising
-    from g2r_jax.downstream.denoiser import DenoiserTraining
+    from g2r_jax.downstream.denoising import burst_check, bursts
+    from g2r_jax.downstream.denoising.denoiser import DenoiserTraining
 
     profile = g2r_jax.load_profile("s20fe_night")
     bursts.write_synthetic_burst(tmp_path / "burst", profile, n_frames=6, height=48, width=64, iso=1600, seed=3)
     burst = bursts.read_burst(tmp_path / "burst")
     trained = []
-    original = denoising._train_row
-    monkeypatch.setattr(denoising, "_train_row", lambda *a, **k: trained.append(1) or original(*a, **k))
+    original = burst_check._train_row
+    monkeypatch.setattr(burst_check, "_train_row", lambda *a, **k: trained.append(1) or original(*a, **k))
     cache = DownstreamCache(tmp_path / "store")
-    run = lambda: denoising.run_burst_check(burst, profile, rows=("fitted", "real"), contents=("scene",), seeds=(0,),
-                                            steps=None, max_steps=4, training=DenoiserTraining(batch=2, steps_per_round=2),
-                                            cache=cache)
+    run = lambda: burst_check.run_burst_check(burst, profile, rows=("fitted", "real"), contents=("scene",), seeds=(0,),
+                                              steps=None, max_steps=4, training=DenoiserTraining(batch=2, steps_per_round=2),
+                                              cache=cache)
     first = run()
     count = len(trained)
     again = run()

@@ -71,7 +71,7 @@ def test_check_runs_names_bad_files_and_writes_the_report(camera_folders, tmp_pa
 
 
 class _Recorder:
-    """A progress receiver like `downstream.progress.Progress`: keeps the lines, the planned and the done units."""
+    """A progress receiver like `downstream.base.progress.Progress`: keeps the lines, the planned and the done units."""
 
     def __init__(self):
         self.lines, self.planned, self.done, self.doing = [], 0, 0, []
@@ -91,7 +91,8 @@ def test_the_default_check_measures_the_product_and_plans_every_training(camera_
     """Without a profile, the g2r_jax row is the profile g2r-fit-profile makes (lights and a content
     model fitted on the training folds only), the model-free row a control, and the sentence says
     both; the progress receives as many units as it was told to expect (its time left is right)."""
-    from g2r_jax.downstream import experiment, run_check
+    from g2r_jax.downstream import run_check
+    from g2r_jax.downstream.illuminant import experiment
 
     dngs, cg = camera_folders
     progress = _Recorder()
@@ -108,7 +109,7 @@ def test_the_default_check_measures_the_product_and_plans_every_training(camera_
 def test_the_progress_bar_shows_the_time_left(capsys):
     import io
 
-    from g2r_jax.downstream.progress import Progress
+    from g2r_jax.downstream.base.progress import Progress
 
     stream = io.StringIO()
     lines = []
@@ -122,7 +123,7 @@ def test_the_progress_bar_shows_the_time_left(capsys):
 
 @pytest.mark.slow
 def test_burst_check_adds_denoising_and_names_a_frame_it_cannot_use(camera_folders, tmp_path, capsys):
-    from g2r_jax.downstream.bursts import write_synthetic_burst
+    from g2r_jax.downstream.denoising.bursts import write_synthetic_burst
 
     dngs, cg = camera_folders
     burst = tmp_path / "burst"
@@ -142,7 +143,7 @@ def test_burst_check_adds_denoising_and_names_a_frame_it_cannot_use(camera_folde
 
 
 def test_a_burst_too_short_is_refused_before_training(camera_folders, tmp_path, capsys):
-    from g2r_jax.downstream.bursts import write_synthetic_burst
+    from g2r_jax.downstream.denoising.bursts import write_synthetic_burst
 
     dngs, cg = camera_folders
     burst = tmp_path / "burst"
@@ -224,7 +225,8 @@ def test_duplicates_are_read_once_or_kept_in_one_fold_and_named(camera_folders, 
 def test_experiment_never_tests_a_file_on_its_own_copy(monkeypatch):
     """A 1-nearest-neighbour 'estimator' remembers its training images: were a copy on the other
     side of a split, its error would be 0 (the issue's real-training row 4.60 -> 1.30 deg)."""
-    from g2r_jax.downstream import estimators, experiment, real_sets
+    from g2r_jax.downstream.base import real_sets
+    from g2r_jax.downstream.illuminant import estimators, experiment
     from g2r_jax.measure import duplicate_groups
 
     rng = np.random.default_rng(0)
@@ -288,7 +290,7 @@ def test_labels_of_one_light_are_refused_by_folder_with_what_is_needed(camera_fo
 
 
 def test_burst_alone_needs_no_colour_set_and_oversized_cg_names_the_option(camera_folders, tmp_path, capsys):
-    from g2r_jax.downstream.bursts import write_synthetic_burst
+    from g2r_jax.downstream.denoising.bursts import write_synthetic_burst
 
     dngs, cg = camera_folders
     burst = tmp_path / "burst"
@@ -315,7 +317,8 @@ def test_the_commands_page_lists_every_option():
 
 def test_a_registered_row_is_trained_and_reported_like_the_others(monkeypatch):
     """The place for extra training sets (e.g. with and without a content model)."""
-    from g2r_jax.downstream import estimators, experiment, real_sets, report
+    from g2r_jax.downstream.base import real_sets
+    from g2r_jax.downstream.illuminant import estimators, experiment, reporting
 
     rng = np.random.default_rng(1)
     images = rng.random((8, 64, 64, 3)).astype(np.float32)
@@ -336,7 +339,7 @@ def test_a_registered_row_is_trained_and_reported_like_the_others(monkeypatch):
         result = experiment.illuminant_experiment(real, g2r_jax.load_profile("NikonD40"), [images[0]],
                                                   rows=("real", "mirror"), estimators=("moments",), seeds=(0,), n=50,
                                                   folds=2)
-        table = report.table(result)
+        table = reporting.table(result)
     finally:
         experiment.ROWS.pop("mirror", None)
         experiment.EXTRA_ROWS.pop("mirror", None)
@@ -348,7 +351,7 @@ def test_arguments_are_checked_before_jax_is_imported():
     import subprocess
     import sys
 
-    from g2r_jax.downstream.estimators import ESTIMATORS
+    from g2r_jax.downstream.illuminant.estimators import ESTIMATORS
 
     assert downstream.ESTIMATOR_NAMES == ESTIMATORS
     code = ("import sys; from g2r_jax.cli.downstream import main; "
@@ -363,11 +366,11 @@ def test_the_isp_task_runs_on_the_real_dngs_with_its_rows_sentence_and_figure(ca
     its rows in report.json, its sentence printed and in report.md, and isp.png beside them."""
     import functools
 
-    from g2r_jax.downstream import isp
-    from g2r_jax.downstream.isp_net import IspTraining
+    from g2r_jax.downstream.isp import task
+    from g2r_jax.downstream.isp.net import IspTraining
 
-    monkeypatch.setattr(isp, "run_isp_task", functools.partial(isp.run_isp_task, n=24,
-                                                               training=IspTraining(steps=20, steps_per_round=10)))
+    monkeypatch.setattr(task, "run_isp_task", functools.partial(task.run_isp_task, n=24,
+                                                                training=IspTraining(steps=20, steps_per_round=10)))
     dngs, cg = camera_folders
     report = tmp_path / "report"
     status, out, err = run(capsys, "--measured", dngs, "--cg", cg, "--report", report, "--tasks", "isp",

@@ -12,7 +12,8 @@ import pytest
 from downstream_helpers import write_camera_folders
 
 import g2r_jax
-from g2r_jax.downstream import content_rows, estimators, experiment, real_sets, training_sets
+from g2r_jax.downstream.base import product, real_sets, training_sets
+from g2r_jax.downstream.illuminant import content_rows, estimators, experiment
 from g2r_jax.measure import folds_of
 from g2r_jax.pipeline import without_content
 
@@ -74,7 +75,7 @@ def test_the_rows_model_is_fitted_to_the_training_folds_only(monkeypatch):
     tests = folds_of(len(real.images), 2, 0, groups=real.groups)
     assert len(fitted_to) == 4                                   # one per (fold, seed), shared by both rows
     for k, (name, seen) in enumerate(fitted_to):
-        assert name == content_rows.FITTED
+        assert name == product.FITTED
         assert seen == set(range(len(real.images))) - set(tests[k % 2].tolist())
     assert sum("content model of the g2r_jax rows, seed" in note and "cast" in note for note in result.notes) == 4
     assert {row for row, _ in result.errors} == {"fitted", "upi_content"}
@@ -245,7 +246,7 @@ def test_the_library_rows_give_the_benchmarks_figures(shared_data, monkeypatch):
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
     ran = bench.run_camera(("Canon600D", ("moments",), (0,), 40, (), content_rows.SELECTION_ESTIMATOR,
-                            content_rows.FITTED))
+                            product.FITTED))
     frames = [np.asarray(Image.open(p).convert("RGB")) for p in sorted((shared_data / "cg" / "carla").glob("*.png"))]
     real = real_sets.load_nus(shared_data / "estimation" / "nus" / "Canon600D.npz")
     result = experiment.illuminant_experiment(real, bench.camera_profile("Canon600D"), frames,
@@ -255,7 +256,7 @@ def test_the_library_rows_give_the_benchmarks_figures(shared_data, monkeypatch):
                                ("upi_content", "upi+content"), ("real", "real")):
         np.testing.assert_allclose(result.errors[(row, "moments")][0], ran["errors"][f"{benchmark_row}/moments"][0],
                                    rtol=1e-6, err_msg=row)
-    assert [c["family"] for c in ran["chosen"]] == [content_rows.FITTED] * 3
+    assert [c["family"] for c in ran["chosen"]] == [product.FITTED] * 3
     assert sum("content model of the g2r_jax rows, seed 0, fold" in note for note in result.notes) == 3
 
 
@@ -280,7 +281,7 @@ def test_a_profile_that_applies_its_model_keeps_it_off_the_real_content_controls
     with_model = [c for c in g2r_calls if c[2].content is not None]
     assert len(with_model) == 1 and with_model[0][2].content.family == "cast"    # the 'shipped' row
     views = training_sets.cg_views(_cg(), 50, 0)
-    expected = np.asarray(content_rows.adapted_views(profile.content, views))
+    expected = np.asarray(product.adapted_views(profile.content, views))
     assert not np.allclose(expected, views, atol=1e-3)
     adapted = [c for c in g2r_calls if c[1].shape == views.shape and np.allclose(c[1], expected, atol=1e-5)]
     assert len(adapted) == 2                                      # the 'fitted' row, once per fold

@@ -1,4 +1,4 @@
-"""The denoising check (g2r_jax.downstream.denoising, .denoiser, .bursts) on synthetic bursts whose
+"""The denoising check (g2r_jax.downstream.denoising.burst_check, .denoiser, .bursts) on synthetic bursts whose
 noise is known: burst reading names and skips bad files (copies, black frames, saturation),
 photon transfer and the reference's noise correction recover the truth, the verdict sentence
 names only differences larger than the seeds' spread, and (slow) on a dim defocused 10-bit burst
@@ -15,7 +15,7 @@ import pytest
 
 import g2r_jax
 from g2r_jax.audit.synthetic_bursts import BurstTruth, truth_profile
-from g2r_jax.downstream import bursts, denoiser, denoising
+from g2r_jax.downstream.denoising import burst_check, bursts, denoiser, noise
 from g2r_jax.io.dng_info import DngError
 
 SPAN = 959.0
@@ -81,10 +81,10 @@ def test_reference_noise_is_taken_out_of_the_psnr(burst_folder):
     clean = burst.planes.mean(0)
     true_variance = float(np.mean(TRUTH.shot * np.maximum(clean, 0) + TRUTH.read)) + 1 / 12 / SPAN**2
     expected = 10 * np.log10(1 / true_variance)
-    corrected = [denoising.psnr(burst.planes[i], *denoising.reference_and_variance(burst, i)) for i in range(burst.n)]
-    raw = [denoising.psnr(burst.planes[i], denoising.reference_and_variance(burst, i)[0]) for i in range(burst.n)]
+    corrected = [burst_check.psnr(burst.planes[i], *burst_check.reference_and_variance(burst, i)) for i in range(burst.n)]
+    raw = [burst_check.psnr(burst.planes[i], burst_check.reference_and_variance(burst, i)[0]) for i in range(burst.n)]
     others = np.delete(burst.planes, 2, axis=0).astype(np.float64)
-    reference, variance = denoising.reference_and_variance(burst, 2)
+    reference, variance = burst_check.reference_and_variance(burst, 2)
     assert np.allclose(reference, others.mean(0), atol=1e-7)
     assert variance == pytest.approx(np.mean(others.var(0, ddof=1)) / 7, rel=1e-6)
     assert np.mean(corrected) == pytest.approx(expected, abs=0.15)
@@ -92,11 +92,11 @@ def test_reference_noise_is_taken_out_of_the_psnr(burst_folder):
 
 
 def test_synthetic_noise_has_the_model_variance_and_is_deterministic():
-    spec = denoising.NoiseSpec(shot=np.full(4, 2e-3, np.float32), read=np.full(4, 1e-5, np.float32))
+    spec = noise.NoiseSpec(shot=np.full(4, 2e-3, np.float32), read=np.full(4, 1e-5, np.float32))
     clean = np.full((64, 4, 16, 16), 0.05, np.float32)
     levels = (np.full(4, 64.0, np.float32), np.full(4, SPAN, np.float32), np.float32(1023))
-    draw = jax.jit(lambda key: denoising.synthetic_noisy(key, clean, denoising._noise_arrays(spec), False, 0.5,
-                                                         *levels))
+    draw = jax.jit(lambda key: noise.synthetic_noisy(key, clean, noise._noise_arrays(spec), False, 0.5,
+                                                     *levels))
     noisy = np.asarray(draw(jax.random.PRNGKey(0)))
     expected = 0.5 * (2e-3 * 0.05 + 1e-5) + 1 / 12 / SPAN**2
     assert noisy.var() == pytest.approx(expected, rel=0.05)
@@ -131,7 +131,7 @@ def test_profile_of_another_cfa_is_refused(burst_folder, true_profile):
 
     other = schema.replace(true_profile, cfa_pattern=np.asarray([2, 1, 1, 0]))
     with pytest.raises(ValueError, match=r"CFA pattern \(2, 1, 1, 0\) is not the burst's \(0, 1, 1, 2\)"):
-        denoising.run_burst_check(burst_folder, other, rows=("truth",), contents=("scene",), seeds=(0,), steps=1)
+        burst_check.run_burst_check(burst_folder, other, rows=("truth",), contents=("scene",), seeds=(0,), steps=1)
 
 
 # ---------------------------------------------------------------- degenerate bursts (issue 34's fuzz classes)
@@ -181,16 +181,16 @@ def test_a_saturated_burst_is_refused_up_front_naming_its_folder(tmp_path, true_
 
 
 def _result(psnr, seeds=(0, 1, 2)):
-    return denoising.DenoisingResult(psnr=psnr, psnr_uncorrected=psnr, noisy_psnr=30.0, noise={}, frames=("a",),
-                                     skipped=(), iso=100.0, folds=2, seeds=seeds, steps=900, cg_images=0,
-                                     seconds={}, peak=0.06)
+    return burst_check.DenoisingResult(psnr=psnr, psnr_uncorrected=psnr, noisy_psnr=30.0, noise={}, frames=("a",),
+                                       skipped=(), iso=100.0, folds=2, seeds=seeds, steps=900, cg_images=0,
+                                       seconds={}, peak=0.06)
 
 
 def test_compare_rows_names_only_differences_beyond_the_seeds_spread():
-    assert denoising.compare_rows([40.0, 40.2, 40.1], [39.0, 39.1, 38.9]) == "+1.10 dB"
-    assert denoising.compare_rows([39.0, 39.1, 38.9], [40.0, 40.2, 40.1]) == "-1.10 dB"
-    assert denoising.compare_rows([40.0, 41.0], [40.5, 40.6]) == "within training noise (-0.05 dB)"
-    assert "training noise not measured" in denoising.compare_rows([40.0], [39.0])
+    assert burst_check.compare_rows([40.0, 40.2, 40.1], [39.0, 39.1, 38.9]) == "+1.10 dB"
+    assert burst_check.compare_rows([39.0, 39.1, 38.9], [40.0, 40.2, 40.1]) == "-1.10 dB"
+    assert burst_check.compare_rows([40.0, 41.0], [40.5, 40.6]) == "within training noise (-0.05 dB)"
+    assert "training noise not measured" in burst_check.compare_rows([40.0], [39.0])
 
 
 def test_verdict_sentence_says_within_training_noise_where_the_rows_overlap():
@@ -226,7 +226,7 @@ def test_cg_content_is_brought_to_the_scene_levels():
     rng = np.random.default_rng(0)
     cg = rng.uniform(0, 1, (3, 4, 32, 32)).astype(np.float32) ** 2
     scene = 0.02 + 0.04 * rng.uniform(0, 1, (4, 32, 32)) ** 3
-    matched = denoising.match_levels(cg, scene)
+    matched = burst_check.match_levels(cg, scene)
     for planes in matched:
         assert np.quantile(planes, 0.5) == pytest.approx(np.quantile(scene, 0.5), rel=1e-4)
         assert np.quantile(planes, 0.99) == pytest.approx(np.quantile(scene, 0.99), rel=1e-4)
@@ -249,21 +249,21 @@ def _ranked_check(tmp_path, base_profile, truth, low, high, blur):
     low_noise = truth_profile(base_profile, dataclasses.replace(truth, shot=truth.shot / 4, read=truth.read / 4))
     burst = bursts.read_burst(folder)
     assert all(info.noise_profile is None for info in burst.infos)
-    result = denoising.run_burst_check(burst, low_noise, rows=("upi", "shipped", "truth", "real"),
-                                       contents=("scene",), seeds=(0, 1), max_steps=denoising.MAX_STEPS,
-                                       truth_noise=(truth.shot, truth.read))
+    result = burst_check.run_burst_check(burst, low_noise, rows=("upi", "shipped", "truth", "real"),
+                                         contents=("scene",), seeds=(0, 1), max_steps=burst_check.MAX_STEPS,
+                                         truth_noise=(truth.shot, truth.read))
     print(result.summary())   # the figures of docs/pages/validation/downstream_denoising.md (pytest -rP)
     return result
 
 
 def _assert_ranked(result):
     psnr = {row: result.psnr[(row, "scene")] for row in ("upi", "shipped", "truth", "real")}
-    not_below = lambda a, b: np.mean(psnr[a]) >= np.mean(psnr[b]) or "within" in denoising.compare_rows(psnr[a], psnr[b])
+    not_below = lambda a, b: np.mean(psnr[a]) >= np.mean(psnr[b]) or "within" in burst_check.compare_rows(psnr[a], psnr[b])
     assert not_below("real", "truth"), psnr
     for other in ("upi", "shipped"):
         assert not_below("truth", other), (other, psnr)
-    assert np.mean(psnr["truth"]) > result.noisy_psnr + denoising.MIN_LEARNED_DB, (psnr, result.noisy_psnr)
-    assert result.step_curve and result.last_round_gain() <= denoising.MIN_GAIN_DB, result.step_curve
+    assert np.mean(psnr["truth"]) > result.noisy_psnr + burst_check.MIN_LEARNED_DB, (psnr, result.noisy_psnr)
+    assert result.step_curve and result.last_round_gain() <= burst_check.MIN_GAIN_DB, result.step_curve
     assert "NO VERDICT" not in result.sentence(), result.sentence()
 
 
@@ -286,7 +286,7 @@ def test_bright_sharp_burst_gets_no_verdict(tmp_path, base_profile):
     """In focus, the dead leaves' edges are texture at the noise's scale: no denoiser gains on the
     noisy input (all rows within 0.1 dB of it when measured), and the check says it cannot rank."""
     result = _ranked_check(tmp_path, base_profile, DIM, 0.1, 0.8, blur=0.0)
-    assert result.learned("scene") < denoising.MIN_LEARNED_DB, result.psnr
+    assert result.learned("scene") < burst_check.MIN_LEARNED_DB, result.psnr
     assert "NO VERDICT" in result.sentence() and "no denoiser gains more than" in result.sentence()
 
 
@@ -295,8 +295,8 @@ def test_bright_sharp_burst_gets_no_verdict(tmp_path, base_profile):
 def test_check_all_rows_on_cg_and_scene(burst_folder, true_profile, shared_data):
     """Every row and content on CARLA frames: finite PSNRs, one per seed."""
     cg = sorted((shared_data / "cg" / "carla").glob("*.png"))[:4]
-    result = denoising.run_burst_check(burst_folder, true_profile, cg, seeds=(0, 1), steps=200, cg_count=4)
-    assert set(result.psnr) == {(r, c) for r in denoising.ROWS for c in denoising.CONTENTS} - {("real", "cg")}
+    result = burst_check.run_burst_check(burst_folder, true_profile, cg, seeds=(0, 1), steps=200, cg_count=4)
+    assert set(result.psnr) == {(r, c) for r in burst_check.ROWS for c in burst_check.CONTENTS} - {("real", "cg")}
     for key, values in result.psnr.items():
         assert len(values) == 2 and np.all(np.isfinite(values)), key
     assert result.cg_images == 4 and "affine" in result.summary()
@@ -305,7 +305,7 @@ def test_check_all_rows_on_cg_and_scene(burst_folder, true_profile, shared_data)
 def test_denoisers_trained_side_by_side_give_the_same_psnr(burst_folder, true_profile):
     """`workers` only changes the wall time: every row, content-equal, one thread and three."""
     kwargs = dict(rows=("upi", "truth", "real"), contents=("scene",), seeds=(0,), steps=20)
-    one = denoising.run_burst_check(burst_folder, true_profile, workers=1, **kwargs)
-    three = denoising.run_burst_check(burst_folder, true_profile, workers=3, **kwargs)
+    one = burst_check.run_burst_check(burst_folder, true_profile, workers=1, **kwargs)
+    three = burst_check.run_burst_check(burst_folder, true_profile, workers=3, **kwargs)
     assert one.psnr == three.psnr and one.psnr_uncorrected == three.psnr_uncorrected
     assert set(one.psnr) == {("upi", "scene"), ("truth", "scene"), ("real", "scene")}

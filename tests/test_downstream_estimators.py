@@ -1,4 +1,4 @@
-"""Illuminant estimators and their error metric (g2r_jax.downstream.estimators, .metrics).
+"""Illuminant estimators and their error metric (g2r_jax.downstream.illuminant.estimators, .metrics).
 
 Truth here does not come from the estimators: hand-computed angles, and synthetic scenes made as
 the imaging model makes them (reflectance x illuminant), whose lights are known.
@@ -11,7 +11,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from g2r_jax.downstream import estimators as est
+from g2r_jax.downstream.illuminant import estimators as est
 from g2r_jax.measure import angular_error_degrees, error_summary
 
 # ---------------------------------------------------------------- metrics

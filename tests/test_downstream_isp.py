@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import g2r_jax
-from g2r_jax.downstream import isp, isp_net, isp_pairs
+from g2r_jax.downstream.isp import net, pairs, task
 from g2r_jax.io import reference_render
 from g2r_jax.io.dng_info import DngError
 
@@ -27,7 +27,7 @@ def _sources(profile, count: int, seed: int = 0):
     images = np.stack([np.clip(0.2 + 0.5 * rng.random(3) * (np.sin(6 * x + k) * 0.5 + 0.5)[..., None]
                                + 0.2 * rng.random(3) * y[..., None], 0.01, 0.95) for k in range(count)]).astype(np.float32)
     lights = np.c_[rng.uniform(0.4, 0.7, count), np.ones(count), rng.uniform(0.5, 0.8, count)]
-    return isp_pairs.thumbnail_sources(images, lights, profile), images, lights
+    return pairs.thumbnail_sources(images, lights, profile), images, lights
 
 
 def test_renderer_is_deterministic_and_honours_the_as_shot_white(profile):
@@ -39,13 +39,13 @@ def test_renderer_is_deterministic_and_honours_the_as_shot_white(profile):
     from g2r_jax.profile.dng_tags import dng_info_for
 
     neutral = np.array([0.5, 1.0, 0.7])
-    flat = isp_pairs.tile_mosaic(isp_pairs.rgb_planes(np.broadcast_to(0.3 * neutral, (32, 32, 3))), profile.cfa_pattern,
-                                 profile.black_level, profile.white_level)
-    info = dng_info_for(profile, isp_pairs._metadata(neutral), 64, 64, noise=False)
-    grey = reference_render.develop(isp_pairs.dng_source(flat, info, "grey.dng").data)[16:48, 16:48].mean((0, 1))
+    flat = pairs.tile_mosaic(pairs.rgb_planes(np.broadcast_to(0.3 * neutral, (32, 32, 3))), profile.cfa_pattern,
+                             profile.black_level, profile.white_level)
+    info = dng_info_for(profile, pairs._metadata(neutral), 64, 64, noise=False)
+    grey = reference_render.develop(pairs.dng_source(flat, info, "grey.dng").data)[16:48, 16:48].mean((0, 1))
     assert np.ptp(grey) < 0.01, grey
-    wrong = dng_info_for(profile, isp_pairs._metadata(np.array([1.0, 1.0, 1.0])), 64, 64, noise=False)
-    tinted = reference_render.develop(isp_pairs.dng_source(flat, wrong, "tinted.dng").data)[16:48, 16:48].mean((0, 1))
+    wrong = dng_info_for(profile, pairs._metadata(np.array([1.0, 1.0, 1.0])), 64, 64, noise=False)
+    tinted = reference_render.develop(pairs.dng_source(flat, wrong, "tinted.dng").data)[16:48, 16:48].mean((0, 1))
     assert np.ptp(tinted) > 0.05, tinted
 
 
@@ -53,13 +53,13 @@ def test_renderer_develops_a_real_camera_file_and_its_working_copy(shared_data):
     path = shared_data / "dng" / "gopro_hero6_GOPR0024.dng"
     image = reference_render.develop(path)
     assert image.shape[:2] == (3000, 4000) and np.array_equal(image, reference_render.develop(path.read_bytes()))
-    small = isp_pairs.working_source(path)
+    small = pairs.working_source(path)
     assert small.mosaic.shape == (64, 64) and small.info.cfa_pattern == (0, 1, 1, 2)
     from g2r_jax.io.dng_read import read_dng_info
 
     tags = read_dng_info(path)
     assert np.allclose(small.info.as_shot_neutral, tags.as_shot_neutral) and small.info.white_level == tags.white_level
-    packed, target = isp_pairs.pair_of(small)
+    packed, target = pairs.pair_of(small)
     assert packed.shape == (32, 32, 4) and target.shape == (64, 64, 3)
     assert 0.01 < packed.mean() < 1.0 and 0.01 < target.mean() < 1.0
     # the working copy holds the file's binned colour: its target is close to the binned development
@@ -78,35 +78,35 @@ def test_packing_gives_r_g1_g2_b_for_every_phase(name):
     for p, colour in enumerate(cfa):
         label = "RGB"[colour] if colour != 1 else ("G1" if p // 2 == red_row else "G2")
         mosaic[p // 2::2, p % 2::2] = black + values[label] * (white - black)
-    packed = isp_pairs.pack(mosaic, cfa, black, white)
+    packed = pairs.pack(mosaic, cfa, black, white)
     assert packed.shape == (2, 3, 4)
     assert np.allclose(packed[0, 0], [values[k] for k in ("R", "G1", "G2", "B")], atol=1e-6)
     planes = np.random.default_rng(1).random((3, 5, 4))
-    back = isp_pairs.pack(isp_pairs.tile_mosaic(planes, cfa, black, white), cfa, black, white)
+    back = pairs.pack(pairs.tile_mosaic(planes, cfa, black, white), cfa, black, white)
     assert np.allclose(back, planes, atol=1 / (white - black))
 
 
 def test_a_pattern_that_is_not_bayer_is_refused():
     with pytest.raises(ValueError, match="not a 2x2 Bayer"):
-        isp_pairs.channel_positions((0, 0, 1, 2))
+        pairs.channel_positions((0, 0, 1, 2))
 
 
 def test_psnr_ssim_and_delta_e_against_known_values():
     rng = np.random.default_rng(0)
     x = rng.random((2, 32, 32, 3)) * 0.8
-    assert np.allclose(isp_net.ssim(x, x), 1.0)
-    assert np.allclose(isp_net.psnr(x, x + 0.1), 20.0)                     # MSE 0.01
+    assert np.allclose(net.ssim(x, x), 1.0)
+    assert np.allclose(net.psnr(x, x + 0.1), 20.0)                     # MSE 0.01
     a, b = np.full((1, 16, 16, 1), 0.5), np.full((1, 16, 16, 1), 0.25)     # flat: only the luminance term
     c1 = 0.01 ** 2
-    assert np.allclose(isp_net.ssim(a, b), (2 * 0.5 * 0.25 + c1) / (0.5 ** 2 + 0.25 ** 2 + c1))
+    assert np.allclose(net.ssim(a, b), (2 * 0.5 * 0.25 + c1) / (0.5 ** 2 + 0.25 ** 2 + c1))
     noise = rng.normal(0, 1, x.shape)
-    slightly, badly = isp_net.ssim(x, x + 0.05 * noise), isp_net.ssim(x, x + 0.3 * noise)
+    slightly, badly = net.ssim(x, x + 0.05 * noise), net.ssim(x, x + 0.3 * noise)
     assert np.all(badly < slightly) and np.all(slightly < 0.99)
     white, black = np.ones((1, 12, 12, 3)), np.zeros((1, 12, 12, 3))
-    assert np.allclose(isp_net.delta_e_2000(white, black), 100.0, atol=1e-3)   # L* 100 against 0, S_L = 1
-    assert np.allclose(isp_net.delta_e_2000(x, x), 0.0)
+    assert np.allclose(net.delta_e_2000(white, black), 100.0, atol=1e-3)   # L* 100 against 0, S_L = 1
+    assert np.allclose(net.delta_e_2000(x, x), 0.0)
     with pytest.raises(ValueError, match="SSIM needs"):
-        isp_net.ssim(x[:, :8, :8], x[:, :8, :8])
+        net.ssim(x[:, :8, :8], x[:, :8, :8])
 
 
 def test_a_dng_the_renderer_cannot_develop_is_left_out_by_name(profile, tmp_path):
@@ -115,36 +115,36 @@ def test_a_dng_the_renderer_cannot_develop_is_left_out_by_name(profile, tmp_path
     broken.write_bytes(b"II*\x00" + bytes(200))
     with pytest.raises(DngError, match="bad.dng"):
         reference_render.develop(b"not a raw file", name="bad.dng")
-    packed, targets, kept, skipped = isp_pairs.pairs_of([sources[0], broken, sources[1]])
+    packed, targets, kept, skipped = pairs.pairs_of([sources[0], broken, sources[1]])
     assert list(kept) == [0, 2] and len(packed) == len(targets) == 2
     assert len(skipped) == 1 and skipped[0][0] == str(broken) and skipped[0][1]
 
 
 def test_too_few_files_for_the_folds_are_refused(profile):
-    from g2r_jax.downstream.real_sets import RealSet
+    from g2r_jax.downstream.base.real_sets import RealSet
 
     sources, images, lights = _sources(profile, 4)
     real = RealSet(name="tiny", images=images, illuminants=lights / lights.sum(1, keepdims=True))
     with pytest.raises(ValueError, match=r"tiny: 4 usable real DNG.*at least 6"):
-        isp.run_isp_task(real, profile, [np.zeros((64, 64, 3), np.uint8)], dngs=sources, folds=3)
+        task.run_isp_task(real, profile, [np.zeros((64, 64, 3), np.uint8)], dngs=sources, folds=3)
     with pytest.raises(ValueError, match="unknown rows"):
-        isp.run_isp_task(real, profile, [], dngs=sources, rows=("upi", "nope"))
+        task.run_isp_task(real, profile, [], dngs=sources, rows=("upi", "nope"))
 
 
 def test_views_of_the_wrong_size_are_refused(profile):
     with pytest.raises(ValueError, match=r"views must be \(n, 32, 32, 3\)"):
-        isp_pairs.g2r_pairs(np.zeros((2, 64, 64, 3), np.float32), profile, 0)
+        pairs.g2r_pairs(np.zeros((2, 64, 64, 3), np.float32), profile, 0)
 
 
 def test_a_tiny_run_of_upi_and_real_training(profile):
-    from g2r_jax.downstream.real_sets import RealSet
+    from g2r_jax.downstream.base.real_sets import RealSet
 
     sources, images, lights = _sources(profile, 6)
     real = RealSet(name="tiny", images=images, illuminants=lights / lights.sum(1, keepdims=True))
     cg = [(np.random.default_rng(k).random((40, 48, 3)) * 255).astype(np.uint8) for k in range(2)]
-    training = isp_net.IspTraining(steps=2, steps_per_round=2, batch=2, width=2)
-    result = isp.run_isp_task(real, profile, cg, rows=("upi", "real"), seeds=(0, 1), n=4, dngs=sources,
-                              training=training)
+    training = net.IspTraining(steps=2, steps_per_round=2, batch=2, width=2)
+    result = task.run_isp_task(real, profile, cg, rows=("upi", "real"), seeds=(0, 1), n=4, dngs=sources,
+                               training=training)
     assert result.images == 6 and result.seeds == (0, 1)
     for key, per_seed in result.metrics.items():
         assert len(per_seed) == 2 and all(v.shape == (6,) and np.all(np.isfinite(v)) for v in per_seed), key
@@ -152,7 +152,7 @@ def test_a_tiny_run_of_upi_and_real_training(profile):
     assert "UPI" in result.sentence() and "real training" in result.sentence()
     summary = result.summary("real", "psnr")
     assert summary["seed_min"] <= summary["mean"] <= summary["seed_max"]
-    assert result.examples["target"].shape == (isp.EXAMPLES, 64, 64, 3)
+    assert result.examples["target"].shape == (task.EXAMPLES, 64, 64, 3)
 
 
 @pytest.mark.slow
@@ -160,39 +160,39 @@ def test_a_tiny_run_measures_every_row(tmp_path):
     from PIL import Image
 
     from downstream_helpers import write_camera_folders
-    from g2r_jax.downstream.real_sets import load_dng_folder
+    from g2r_jax.downstream.base.real_sets import load_dng_folder
 
     dngs, cg_folder = write_camera_folders(tmp_path, 6, 2)
     real, skipped = load_dng_folder([dngs])
     assert not skipped and len(real.images) == 6
     cg = [np.asarray(Image.open(p).convert("RGB")) for p in sorted(cg_folder.glob("*.png"))]
     profile = g2r_jax.load_profile("NikonD40")
-    training = isp_net.IspTraining(steps=2, steps_per_round=2, batch=2, width=4)
-    result = isp.run_isp_task(real, profile, cg, rows=tuple(isp.ROWS), seeds=(0,), n=6, training=training)
-    for row in isp.ROWS:
-        for metric in isp.METRICS:
+    training = net.IspTraining(steps=2, steps_per_round=2, batch=2, width=4)
+    result = task.run_isp_task(real, profile, cg, rows=tuple(task.ROWS), seeds=(0,), n=6, training=training)
+    for row in task.ROWS:
+        for metric in task.METRICS:
             values = result.metrics[(row, metric)]
             assert len(values) == 1 and values[0].shape == (6,) and np.all(np.isfinite(values[0])), (row, metric)
     table, sentence = result.table(), result.sentence()
-    assert all(f"`{row}`" in table for row in isp.ROWS)
+    assert all(f"`{row}`" in table for row in task.ROWS)
     assert "UPI" in sentence and "real training" in sentence and "profile's share" in sentence
     assert result.to_dict()["summary"]["fitted/psnr"]["seed_means"]
     assert any("content model" in note for note in result.notes)
     assert result.figure(tmp_path / "isp.png") and (tmp_path / "isp.png").stat().st_size > 1000
-    packed, target = isp_pairs.pair_of(real.files[0])     # a camera file from its path: binned to the task's size
+    packed, target = pairs.pair_of(real.files[0])     # a camera file from its path: binned to the task's size
     assert packed.shape == (32, 32, 4) and target.shape == (64, 64, 3) and 0.0 < target.mean() < 1.0
 
 
 @pytest.mark.slow
 def test_rows_trained_together_match_one_at_a_time(profile):
     sources = _sources(profile, 4)[0]
-    packed, targets, _, _ = isp_pairs.pairs_of(sources)
+    packed, targets, _, _ = pairs.pairs_of(sources)
     sets = [(packed[:3], targets[:3]), (packed[1:], targets[1:])]
     config = dict(steps=2, steps_per_round=2, batch=2, width=2)
-    apart = isp_net.train_many(sets, [0, 1], isp_net.IspTraining(together=False, **config))
-    together = isp_net.train_many(sets, [0, 1], isp_net.IspTraining(together=True, **config))
+    apart = net.train_many(sets, [0, 1], net.IspTraining(together=False, **config))
+    together = net.train_many(sets, [0, 1], net.IspTraining(together=True, **config))
     for a, b in zip(apart, together):
-        assert np.allclose(isp_net.predict(a, packed), isp_net.predict(b, packed), atol=1e-4)
+        assert np.allclose(net.predict(a, packed), net.predict(b, packed), atol=1e-4)
 
 
 def test_masks_cover_what_a_masked_pixel_reaches_in_the_target(profile):
@@ -202,13 +202,13 @@ def test_masks_cover_what_a_masked_pixel_reaches_in_the_target(profile):
     holed = images.copy()
     holed[0, 20:23, 30:31] = 0.0                      # takes in two tiles: rows 10-11, column 15
     light = np.array([[0.5, 1.0, 0.6]])
-    plain, masked = (reference_render.develop(isp_pairs.thumbnail_sources(x, light, profile)[0].data)
+    plain, masked = (reference_render.develop(pairs.thumbnail_sources(x, light, profile)[0].data)
                      for x in (images, holed))
     changed = np.abs(plain - masked).max(-1) > 1e-4
-    mask = isp_pairs.thumbnail_masks(holed)[0]
+    mask = pairs.thumbnail_masks(holed)[0]
     assert changed.any() and not np.any(changed & mask)
     assert (~mask).sum() == 6 * 4                     # two tiles (4 x 2 pixels) spread by one pixel
-    assert isp_pairs.thumbnail_masks(images).all()
+    assert pairs.thumbnail_masks(images).all()
 
 
 def test_masked_measures_ignore_the_masked_pixels():
@@ -219,30 +219,30 @@ def test_masked_measures_ignore_the_masked_pixels():
     mask[:, 4:12, 20:30] = False
     spoiled = predicted.copy()
     spoiled[:, 4:12, 20:30] = 1.0 - target[:, 4:12, 20:30]          # wrong only where masked
-    clean, wrong = isp_net.measure(predicted, target, mask), isp_net.measure(spoiled, target, mask)
-    for metric in isp.METRICS:
+    clean, wrong = net.measure(predicted, target, mask), net.measure(spoiled, target, mask)
+    for metric in task.METRICS:
         np.testing.assert_allclose(wrong[metric], clean[metric], rtol=1e-9, err_msg=metric)
-    unmasked = isp_net.measure(spoiled, target)
+    unmasked = net.measure(spoiled, target)
     assert np.all(unmasked["psnr"] < clean["psnr"] - 3) and np.all(unmasked["delta_e"] > clean["delta_e"])
-    np.testing.assert_allclose(isp_net.measure(predicted, target, np.ones((2, 32, 32), bool))["psnr"],
-                               isp_net.psnr(predicted, target))
-    assert np.isnan(isp_net.psnr(predicted, target, np.zeros((2, 32, 32), bool))).all()
+    np.testing.assert_allclose(net.measure(predicted, target, np.ones((2, 32, 32), bool))["psnr"],
+                               net.psnr(predicted, target))
+    assert np.isnan(net.psnr(predicted, target, np.zeros((2, 32, 32), bool))).all()
 
 
 def test_masked_pixels_are_out_of_the_loss(profile):
     """Training on pairs whose masked pixels hold nonsense gives the same network as training on
     the same pairs with those pixels set to anything else."""
     sources = _sources(profile, 4)[0]
-    packed, targets, _, _ = isp_pairs.pairs_of(sources)
+    packed, targets, _, _ = pairs.pairs_of(sources)
     mask = np.ones(targets.shape[:3], bool)
     mask[:, 10:30, 5:40] = False
     other = targets.copy()
     other[:, 10:30, 5:40] = 1.0 - other[:, 10:30, 5:40]
-    config = isp_net.IspTraining(steps=3, steps_per_round=3, batch=2, width=2, together=False)
-    a, b = (isp_net.train_many([(packed, t, mask)], [0], config)[0] for t in (targets, other))
-    np.testing.assert_allclose(isp_net.predict(a, packed), isp_net.predict(b, packed), atol=1e-6)
-    c = isp_net.train_many([(packed, other)], [0], config)[0]
-    assert not np.allclose(isp_net.predict(a, packed), isp_net.predict(c, packed), atol=1e-4)
+    config = net.IspTraining(steps=3, steps_per_round=3, batch=2, width=2, together=False)
+    a, b = (net.train_many([(packed, t, mask)], [0], config)[0] for t in (targets, other))
+    np.testing.assert_allclose(net.predict(a, packed), net.predict(b, packed), atol=1e-6)
+    c = net.train_many([(packed, other)], [0], config)[0]
+    assert not np.allclose(net.predict(a, packed), net.predict(c, packed), atol=1e-4)
 
 
 def test_saturated_tiles_are_written_at_the_white_level(profile):
@@ -251,10 +251,10 @@ def test_saturated_tiles_are_written_at_the_white_level(profile):
     tiles[1, 3:6, 10:12] = True
     images = np.full((2, 64, 64, 3), 0.3, np.float32)
     images[1, 6:12, 20:24] = 0.0
-    assert np.array_equal(isp_pairs.missing_tiles(images), tiles)
+    assert np.array_equal(pairs.missing_tiles(images), tiles)
     lights = np.array([[0.5, 1, 0.6]] * 2)
-    packed, targets = isp_pairs.g2r_pairs(views, profile, 0, neutrals=lights, saturated=tiles)
-    plain, _ = isp_pairs.g2r_pairs(views, profile, 0, neutrals=lights)
+    packed, targets = pairs.g2r_pairs(views, profile, 0, neutrals=lights, saturated=tiles)
+    plain, _ = pairs.g2r_pairs(views, profile, 0, neutrals=lights)
     assert np.all(packed[1][tiles[1]] == 1.0) and not np.any(plain[1][tiles[1]] == 1.0)
     assert np.array_equal(packed[1][~tiles[1]], plain[1][~tiles[1]]) and np.array_equal(packed[0], plain[0])
     assert targets[1][7:11, 21:23].min() > 0.99          # developed white inside, as the real pairs' missing pixels

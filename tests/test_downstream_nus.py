@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import g2r_jax
-from g2r_jax.downstream import experiment, real_sets
+from g2r_jax.downstream.base import real_sets
+from g2r_jax.downstream.illuminant import experiment
 
 pytestmark = [pytest.mark.slow, pytest.mark.data]
 

@@ -4,8 +4,8 @@ NUS benchmark (docs validation illuminant_models, "How fine this benchmark can s
 
 import numpy as np
 
-from g2r_jax.downstream.experiment import ExperimentResult
-from g2r_jax.downstream.report import seeds_apart, sentence
+from g2r_jax.downstream.illuminant.experiment import ExperimentResult
+from g2r_jax.downstream.illuminant.reporting import seeds_apart, sentence
 
 
 def _result(seed_means: dict, seeds=(0, 1)) -> ExperimentResult:

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 import g2r_jax
-from g2r_jax.downstream import content, real_sets, thumbnails, training_sets, upi
+from g2r_jax.downstream.base import real_sets, thumbnails, training_sets, upi
+from g2r_jax.downstream.illuminant import content
 from g2r_jax.pipeline import without_content
 
 
@@ -132,7 +133,7 @@ def test_content_statistics_without_spread_are_reported_as_such_not_as_distances
     """Issue 34: a real set with no dark pixels anywhere, or whose saturated pixels all read 0 in
     the same share, gave distances of thousands of robust sd. Now every distance is floored at the
     statistic's resolution, a statistic without spread gives no distance, and none exceeds 100."""
-    from g2r_jax.downstream import report
+    from g2r_jax.downstream.illuminant import reporting
 
     lights = np.tile([[0.5, 1, 0.7]], (30, 1))
     real = textures(30, seed=3) * lights[:, None, None, :]
@@ -146,7 +147,7 @@ def test_content_statistics_without_spread_are_reported_as_such_not_as_distances
     assert rows["dark_share"]["synthetic"] > 0.3 and rows["dark_share"]["real"] == 0
     finite = [abs(r["distance"]) for r in rows.values() if r["spread"]]
     assert finite and max(finite) < 100
-    assert "no spread in the real files" in report.content_table(list(rows.values()))
+    assert "no spread in the real files" in reporting.content_table(list(rows.values()))
     assert content.resolution("dark_share", 4096, 0.0) == 1 / 4096
     assert content.resolution("zeroed_share", 4096, 0.085) == pytest.approx(np.sqrt(0.085 * 0.915 / 4096))
 

@@ -102,7 +102,7 @@ def test_random_sets_of_nus_day_and_indoor_lights_keep_the_day_preset(shared_dat
     """The NUS cameras' measured lights (day and indoor scenes), random sets of 1-9 through each
     camera's shipped profile: the camera that took the night preset most often before the rules
     (NikonD5200: 4-9 % of random sets) keeps the day preset in 200 sets."""
-    from g2r_jax.downstream import real_sets
+    from g2r_jax.downstream.base import real_sets
     from g2r_jax.illuminants.distributions import neutral_to_chromaticity
 
     nus = shared_data / "estimation" / "nus" / "NikonD5200.npz"

@@ -1,5 +1,6 @@
 """The package layout: no import circles, the profile fitter independent of the audit, a short top
-level, and no module named like a public name of its package (design.md, "The shape")."""
+level, the downstream tasks on their shared base, and no module named like a public name of its
+package (design.md, "The shape")."""
 
 from __future__ import annotations
 
@@ -133,6 +134,72 @@ def test_layer_check_finds_an_upward_import():
              "g2r_jax.runtime.z": {"g2r_jax.io.y"}, "g2r_jax.nowhere": set(), TOP: {"g2r_jax.cli.a"}}
     assert layer_violations(graph) == ["g2r_jax.runtime.z -> g2r_jax.io.y", "g2r_jax.sensor.x -> g2r_jax.profile.schema"]
     assert layer_of("g2r_jax.pipeline") == layer_of("g2r_jax.profile.fitting") > layer_of("g2r_jax.content.model")
+
+
+# Inside `downstream` (issue 52): one shared base at the bottom, one sub-package per task above it
+# (peers: none imports another), and the check that runs every task on top (the package's own
+# modules: `check`, `inputs`, `report`). Below `downstream`, the rooms of LAYERS as for any module.
+DOWNSTREAM = "g2r_jax.downstream"
+DOWNSTREAM_BASE = "base"
+DOWNSTREAM_TASKS = {"illuminant": "experiment", "denoising": "burst_check", "isp": "task"}   # task: its run
+
+
+def downstream_part(module: str) -> str | None:
+    """'base', a task's name or 'check' (the package and its top-level modules) for a module of
+    `downstream`; None for any other module."""
+    if module != DOWNSTREAM and not module.startswith(DOWNSTREAM + "."):
+        return None
+    parts = module.split(".")
+    if len(parts) > 2 and parts[2] in (DOWNSTREAM_BASE, *DOWNSTREAM_TASKS):
+        return parts[2]
+    return "check"
+
+
+def downstream_violations(graph) -> list[str]:
+    """'importer -> imported' for every import inside `downstream` against its order: the base
+    importing a task or the check, a task importing another task or the check."""
+    found = []
+    for importer, targets in sorted(graph.items()):
+        own = downstream_part(importer)
+        if own is None or own == "check":
+            continue
+        for target in sorted(targets):
+            theirs = downstream_part(target)
+            if theirs not in (None, own, DOWNSTREAM_BASE):
+                found.append(f"{importer} -> {target}")
+    return found
+
+
+def test_downstream_holds_one_sub_package_per_task_on_the_shared_base():
+    root = PACKAGE / "downstream"
+    on_disk = {p.parent.name for p in root.glob("*/__init__.py")}
+    assert on_disk == {DOWNSTREAM_BASE, *DOWNSTREAM_TASKS}, sorted(on_disk)
+    assert not list(root.glob("*/*/__init__.py")), "one level of sub-packages"
+
+
+def test_downstream_tasks_import_only_the_shared_base():
+    """A task's modules import their own task's, the base's and lower rooms' (LAYERS), never
+    another task's nor the check's; the base imports no task; both module level and in functions."""
+    graph = import_graph()
+    violations = downstream_violations(graph)
+    assert not violations, f"{len(violations)} import(s) across the downstream tasks:\n" + "\n".join(violations)
+    for task, run in DOWNSTREAM_TASKS.items():    # the rule is not empty: every task stands on the base
+        reached = {downstream_part(m) for m in _reachable(graph, f"{DOWNSTREAM}.{task}.{run}")}
+        assert reached - {None} == {task, DOWNSTREAM_BASE}, (task, reached)
+
+
+def test_downstream_check_finds_an_import_across_tasks():
+    graph = {"g2r_jax.downstream.isp.task": {"g2r_jax.downstream.illuminant.experiment",
+                                             "g2r_jax.downstream.base.training", "g2r_jax.measure"},
+             "g2r_jax.downstream.base.cache": {"g2r_jax.downstream.report"},
+             "g2r_jax.downstream.denoising.noise": {"g2r_jax.downstream.denoising.bursts"},
+             "g2r_jax.downstream.check": {"g2r_jax.downstream.isp.task", "g2r_jax.downstream.denoising"},
+             "g2r_jax.downstream.illuminant": {"g2r_jax.downstream.denoising.bursts"}}
+    assert downstream_violations(graph) == ["g2r_jax.downstream.base.cache -> g2r_jax.downstream.report",
+                                            "g2r_jax.downstream.illuminant -> g2r_jax.downstream.denoising.bursts",
+                                            "g2r_jax.downstream.isp.task -> g2r_jax.downstream.illuminant.experiment"]
+    assert downstream_part("g2r_jax.downstream") == downstream_part("g2r_jax.downstream.report") == "check"
+    assert downstream_part("g2r_jax.downstream.base") == "base" and downstream_part("g2r_jax.measure") is None
 
 
 MAX_FUNCTION_LINES = 100

@@ -240,7 +240,7 @@ def test_the_guides_loader_reads_each_tasks_pair(tmp_path, monkeypatch):
     import re
     from pathlib import Path
 
-    from g2r_jax.downstream.isp_pairs import pack
+    from g2r_jax.downstream.isp.pairs import pack
 
     page = (Path(__file__).resolve().parents[1] / "docs/pages/guide/training_loop.md").read_text()
     block = next(b for b in re.findall(r"```python\n(.*?)\n```", page, re.S) if "def read_folder" in b)

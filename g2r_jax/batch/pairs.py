@@ -8,7 +8,7 @@ The three tasks g2r_jax makes data for each train on a pair:
   `unprocess_batch(..., return_clean=True)` gives.
 - illuminant estimation: (DNG, its light in the camera's raw RGB): the manifest's
   `illuminant_rgb`, the DNG's AsShotNeutral normalised to sum 1 as the downstream check labels
-  its files (`g2r_jax.downstream.real_sets`).
+  its files (`g2r_jax.downstream.base.real_sets`).
 - a neural ISP: (DNG, the display image it should develop to). The *scene target* is the CG frame
   as the camera saw it: after the profile's content model (`pipeline.adapted_scene`), which
   recolours every frame before it is made RAW, so the original render is not what the RAW holds.

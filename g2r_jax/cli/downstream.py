@@ -21,7 +21,7 @@ EXAMPLES = """  g2r-downstream --measured my_camera_dngs/ --cg renders/ --report
   g2r-downstream --burst burst_dngs/ --report denoising/
 """
 DEFAULT_ESTIMATORS = "cnn,histogram"
-ESTIMATOR_NAMES = ("cnn", "moments", "histogram")   # `downstream.estimators.ESTIMATORS`, without loading JAX
+ESTIMATOR_NAMES = ("cnn", "moments", "histogram")   # `downstream.illuminant.estimators.ESTIMATORS`, without loading JAX
 TASK_NAMES = ("colour", "isp")                     # `downstream.check.TASKS`
 LIMITS = {"seeds": (1, 100), "n": (50, 100_000), "folds": (2, 50), "denoiser_steps": (1, 1_000_000)}
 
@@ -193,8 +193,8 @@ def check_arguments(args) -> str | None:
 
 def _run(args) -> int:
     from g2r_jax.downstream import default_rows, run_check, write_report
-    from g2r_jax.downstream.cache import DownstreamCache, default_location
-    from g2r_jax.downstream.progress import Progress
+    from g2r_jax.downstream.base.cache import DownstreamCache, default_location
+    from g2r_jax.downstream.base.progress import Progress
 
     def line(message):
         print(f"g2r-downstream: {message}", file=sys.stderr)

@@ -1,21 +1,22 @@
 """The downstream check as a library call: does a network trained on g2r_jax RAW of your CG images
 work on your camera? `run_check` reads and vets the inputs (`downstream.inputs`), trains the
-illuminant estimators of `downstream.experiment` on every row's training set and tests them on
+illuminant estimators of `downstream.illuminant.experiment` on every row's training set and tests them on
 the real DNGs (labelled by their AsShotNeutral), compares the CG content with the real files
-(`downstream.content`), optionally runs the denoising check on a burst
-(`downstream.denoising`), and returns a `report.Report`; `report.write_report` writes it.
+(`downstream.illuminant.content`), optionally runs the denoising check on a burst
+(`downstream.denoising.burst_check`), and returns a `report.Report`; `report.write_report` writes it.
 """
 
 from __future__ import annotations
 
 from typing import Callable, Optional, Sequence
 
-from g2r_jax.downstream import content, experiment, report
+from g2r_jax.downstream import report
+from g2r_jax.downstream.illuminant import content, experiment, reporting
 from g2r_jax.downstream.inputs import Inputs, read_inputs
 from g2r_jax.io.image_headers import DEFAULT_MAX_PIXELS
 
 DEFAULT_ESTIMATORS = ("cnn", "histogram")
-TASKS = ("colour", "isp")      # on the real DNGs: illuminant estimation, the neural ISP (`downstream.isp`)
+TASKS = ("colour", "isp")      # on the real DNGs: illuminant estimation, the neural ISP (`downstream.isp.task`)
 # The ISP task is asked for, not run by default: it trains a UNet per row, fold and seed, which
 # costs more than the rest of the colour check (docs/pages/validation/downstream_isp.md).
 DEFAULT_TASKS = ("colour",)
@@ -25,7 +26,7 @@ def default_rows(profile_given: bool, content_rows: bool = False) -> tuple:
     """The experiment's rows: every default row ('fitted', the product as `g2r-fit-profile` makes
     it, with its controls), 'shipped' only when a profile was given (a fitted profile has no light
     of its own to test), and with `content_rows` UPI on the product's adapted CG content
-    (`experiment.CONTENT_ROWS`, `downstream.content_rows`). Other rows (`experiment.ROWS`) are
+    (`experiment.CONTENT_ROWS`, `downstream.illuminant.content_rows`). Other rows (`experiment.ROWS`) are
     passed to `run_check(rows=...)`."""
     rows = tuple(r for r in experiment.DEFAULT_ROWS if profile_given or r != "shipped")
     return rows + (experiment.CONTENT_ROWS if content_rows else ())
@@ -34,7 +35,7 @@ def default_rows(profile_given: bool, content_rows: bool = False) -> tuple:
 def camera_profile(profile, inputs: Inputs):
     """`profile` (a SensorProfile, a shipped name or a file) loaded, or one fitted from the real
     DNGs' tags as `g2r-fit-profile` would (from the burst's frames without real DNGs), without
-    its content model: the colour check fits that per fold (`downstream.content_rows`),
+    its content model: the colour check fits that per fold (`downstream.illuminant.content_rows`),
     `with_files_content` adds the one of all the files."""
     from g2r_jax.io.dng_read import read_dng_info
     from g2r_jax.profile.fitting import fit_profile
@@ -65,64 +66,65 @@ def with_files_content(sensor, inputs: Inputs):
 def _product_views(views, real, profile):
     """CG views as the product sees them, for the comparison of contents: through the profile's
     content model (applied in the simulation when it carries one), else through the one
-    `g2r-fit-profile` fits to the real files (`content_rows.FITTED`); as they are when the files'
+    `g2r-fit-profile` fits to the real files (`product.FITTED`); as they are when the files'
     cast cannot be fitted."""
-    from g2r_jax.downstream import content_rows
+    from g2r_jax.downstream.base import product
 
     if getattr(profile, "content", None) is not None:
         return views
     try:
-        model = content_rows.candidate_model(content_rows.FITTED, real.images, real.illuminants, views, profile)
+        model = product.candidate_model(product.FITTED, real.images, real.illuminants, views, profile)
     except ValueError:
         return views
-    return content_rows.adapted_views(model, views, 5)
+    return product.adapted_views(model, views, 5)
 
 
 def _colour_check(inputs: Inputs, profile, *, rows, estimators, seeds, n, folds, say, workers=None,
                   cache=None) -> tuple:
     """(ExperimentResult, JSON part, sentences, markdown lines) of the colour check."""
-    from g2r_jax.downstream.training_sets import cg_views, g2r_set, real_to_linear_srgb
+    from g2r_jax.downstream.base.product import fitted_illuminants
+    from g2r_jax.downstream.base.training_sets import cg_views, g2r_set, real_to_linear_srgb
 
     real = inputs.real
     result = experiment.illuminant_experiment(real, profile, inputs.cg, rows=rows, estimators=estimators,
                                               seeds=seeds, n=n, folds=folds, progress=say, workers=workers,
                                               cache=cache)
-    fitted = experiment.fitted_illuminants(profile, real.illuminants)
+    fitted = fitted_illuminants(profile, real.illuminants)
     synthetic = g2r_set(_product_views(cg_views(inputs.cg, min(n, 300), 0), real, profile), fitted, 0)
     round_trip = g2r_set(real_to_linear_srgb(real.images, real.illuminants, profile),
                          experiment.without_content(profile), 0, neutrals=real.illuminants)
     differences = content.compare(synthetic, (real.images, real.illuminants), round_trip)
-    document = {**result.to_dict(), "decomposition": {e: report.decomposition(result, e) for e in estimators},
+    document = {**result.to_dict(), "decomposition": {e: reporting.decomposition(result, e) for e in estimators},
                 "content": differences}
-    sentences = [report.sentence(result, e, differences) for e in estimators]
+    sentences = [reporting.sentence(result, e, differences) for e in estimators]
     notes = [*(f"- {note}" for note in result.notes), ""] if result.notes else []
-    markdown = [report.table(result), "", *notes, "## What differs in the CG content", "",
-                report.content_table(differences), ""]
+    markdown = [reporting.table(result), "", *notes, "## What differs in the CG content", "",
+                reporting.content_table(differences), ""]
     return result, document, sentences, markdown
 
 
 def _curve_check(inputs: Inputs, profile, result, *, counts, estimators, seeds, n, folds, say, workers=None,
                  cache=None):
     """The labelled-files curve of the colour check (`labelled_curve.run_curve`)."""
-    from g2r_jax.downstream.labelled_curve import run_curve
+    from g2r_jax.downstream.illuminant.labelled_curve import run_curve
 
     return run_curve(inputs.real, profile, inputs.cg, result, counts=counts, estimators=estimators, seeds=seeds, n=n,
                      folds=folds, workers=workers, progress=say, cache=cache)
 
 
 def _isp_rows(profile_given: bool) -> tuple:
-    from g2r_jax.downstream import isp
+    from g2r_jax.downstream.isp import task as isp_task
 
-    return tuple(r for r in isp.ROWS if profile_given or r != "shipped")
+    return tuple(r for r in isp_task.ROWS if profile_given or r != "shipped")
 
 
 def _isp_check(inputs: Inputs, profile, *, profile_given: bool, seeds, folds, say, cache=None) -> tuple:
     """(IspResult, JSON part, sentence, markdown lines) of the neural-ISP task on the real DNGs
-    (`downstream.isp.run_isp_task`, its own number of synthetic pairs)."""
-    from g2r_jax.downstream import isp
+    (`downstream.isp.task.run_isp_task`, its own number of synthetic pairs)."""
+    from g2r_jax.downstream.isp import task as isp_task
 
-    result = isp.run_isp_task(inputs.real, profile, inputs.cg, rows=_isp_rows(profile_given), seeds=seeds,
-                              folds=folds, progress=say, cache=cache)
+    result = isp_task.run_isp_task(inputs.real, profile, inputs.cg, rows=_isp_rows(profile_given), seeds=seeds,
+                                   folds=folds, progress=say, cache=cache)
     lines = ["## Neural ISP (RAW -> sRGB)", "", result.sentence(), "", result.table(), "",
              *(f"- {note}" for note in result.notes), "",
              "Predicted against target on a few real test files: `isp.png`.", ""]
@@ -135,33 +137,34 @@ def _burst_contents(inputs: Inputs) -> tuple:
 
 def _plan(progress, inputs: Inputs, *, tasks, rows, estimators, seeds: int, folds: int, choose: bool,
           profile_given: bool, curve=()) -> None:
-    """Tell `progress` (a `downstream.progress.Progress`) every training the check will run, so
+    """Tell `progress` (a `downstream.base.progress.Progress`) every training the check will run, so
     that its time left covers the whole check."""
-    from g2r_jax.downstream import denoising, isp
-    from g2r_jax.downstream.progress import plan
+    from g2r_jax.downstream.base.progress import plan
+    from g2r_jax.downstream.denoising import burst_check
+    from g2r_jax.downstream.isp import task as isp_task
 
     units = 0
     if inputs.real is not None and "colour" in tasks:
-        from g2r_jax.downstream.labelled_curve import trainings as curve_trainings
+        from g2r_jax.downstream.illuminant.labelled_curve import trainings as curve_trainings
 
         units += experiment.trainings(rows, estimators, range(seeds), folds)
         units += curve_trainings(curve, len(inputs.real.images) * (folds - 1) // folds, estimators, range(seeds), folds)
     if inputs.real is not None and "isp" in tasks:
-        units += isp.trainings(_isp_rows(profile_given), range(seeds), folds)
+        units += isp_task.trainings(_isp_rows(profile_given), range(seeds), folds)
     if inputs.burst is not None:
-        units += denoising.trainings(inputs.burst.n, denoising.ROWS, _burst_contents(inputs), range(seeds),
-                                     choose=choose)
+        units += burst_check.trainings(inputs.burst.n, burst_check.ROWS, _burst_contents(inputs), range(seeds),
+                                       choose=choose)
     plan(progress, units)
 
 
 def _burst_check(inputs: Inputs, profile, *, seeds, steps, say, cache=None) -> tuple:
     """(DenoisingResult, JSON part, sentence, markdown lines) of the burst's denoising check
-    (`denoising.run_burst_check`)."""
-    from g2r_jax.downstream import denoising
+    (`burst_check.run_burst_check`)."""
+    from g2r_jax.downstream.denoising import burst_check
 
     contents = _burst_contents(inputs)
-    result = denoising.run_burst_check(inputs.burst, profile, inputs.cg_paths, contents=contents, seeds=seeds,
-                                       steps=steps, progress=say, cache=cache)
+    result = burst_check.run_burst_check(inputs.burst, profile, inputs.cg_paths, contents=contents, seeds=seeds,
+                                         steps=steps, progress=say, cache=cache)
     document = {"psnr": {f"{r}/{c}": v for (r, c), v in result.psnr.items()}, "noisy_psnr": result.noisy_psnr,
                 "peak": result.peak, "steps": result.steps, "step_curve": list(result.step_curve),
                 "cg_levels": result.cg_levels, "noise": result.noise, "frames": list(result.frames), "iso": result.iso}
@@ -193,14 +196,14 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
     `n`: synthetic training images per set; `folds`: cross-validation folds of the real files;
     `denoiser_steps`: Adam steps per denoiser (None: chosen on a validation split of the burst); `max_pixels`: the largest CG image read;
     `tasks`: what the real DNGs are used for, some of `TASKS` ('colour': the illuminant
-    estimators; 'isp': the neural ISP, `downstream.isp`); `dry_run`: read and vet every input and
+    estimators; 'isp': the neural ISP, `downstream.isp.task`); `dry_run`: read and vet every input and
     the profile, train nothing; `progress`: a callable
-    taking one line of text, or a `downstream.progress.Progress` (a bar of the check's trainings
+    taking one line of text, or a `downstream.base.progress.Progress` (a bar of the check's trainings
     with the time left); `workers`: rows of the colour check trained side by side
     (`experiment.illuminant_experiment`); `on_problem(path, reason)`: called as each input is left out;
-    `curve`: numbers of labelled real files for the augmentation curve (`downstream.labelled_curve`:
+    `curve`: numbers of labelled real files for the augmentation curve (`downstream.illuminant.labelled_curve`:
     real alone and real + g2r_jax at each; needs the rows 'real' and 'real_plus_fitted'); `cache`:
-    a `downstream.cache.DownstreamCache` of finished trainings of the colour check, the ISP task and
+    a `downstream.base.cache.DownstreamCache` of finished trainings of the colour check, the ISP task and
     the burst check (None: off; the command's default is the user's cache folder, `--no-cache` off).
 
     **Returns:** a `report.Report` (its `status` is the command's exit status). **Raises:**
@@ -277,7 +280,7 @@ def run_check(measured: Sequence = (), cg: Sequence = (), *, burst=None, profile
 def _dry_run_sentence(inputs: Inputs) -> str:
     parts = []
     if inputs.real is not None:
-        from g2r_jax.downstream.real_sets import distinct_lights
+        from g2r_jax.downstream.base.real_sets import distinct_lights
 
         parts.append(f"{len(inputs.real.images)} real DNG(s) of {inputs.real.name!r} under "
                      f"{len(distinct_lights(inputs.real.illuminants))} distinct light(s)")

@@ -12,7 +12,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from g2r_jax.downstream import real_sets
+from g2r_jax.downstream.base import real_sets
 from g2r_jax.io.dng_info import DngError
 from g2r_jax.io.image_headers import DEFAULT_MAX_PIXELS
 
@@ -106,7 +106,7 @@ def read_inputs(measured=(), cg=(), burst=None, *, folds: int = 3, max_pixels: O
         inputs.cg, inputs.cg_paths = read_cg_images(cg, max_pixels=max_pixels, problem=problem)
         say(f"{len(inputs.cg)} CG image(s) read")
     if burst is not None:   # read before any training: a burst that cannot be used is refused first
-        from g2r_jax.downstream.bursts import read_burst
+        from g2r_jax.downstream.denoising.bursts import read_burst
 
         inputs.burst = read_burst(burst)
         for name, reason in inputs.burst.skipped:

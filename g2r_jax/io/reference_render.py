@@ -1,5 +1,5 @@
 """The reference renderer: one fixed RAW developer that makes the display-sRGB image of every DNG,
-real or synthetic, the same way: the neural-ISP task's targets (`g2r_jax.downstream.isp_pairs`)
+real or synthetic, the same way: the neural-ISP task's targets (`g2r_jax.downstream.isp.pairs`)
 and the "camera look" target of `g2r-convert --pairs --developed` (`g2r_jax.batch.pairs`).
 
 The paper (Graphics2RAW, Seo et al. ICCV 2023, supplement S1.3) rendered both its real and its

@@ -6,7 +6,7 @@ In the order of `g2r_jax.pipeline.unprocess` (its steps 6-7): temporal noise at 
 (`sensor.effects.apply_readout_effects`), then black/white levels, pedestal, defective pixels,
 clipping and rounding (`sensor.effects.to_digital_numbers`). Every part is pure JAX: jit and
 vmap `readout` over images and keys. The pipeline and the denoising training sets
-(`g2r_jax.downstream.denoising.synthetic_noisy`) both call it, so a synthetic noisy frame is the
+(`g2r_jax.downstream.denoising.noise.synthetic_noisy`) both call it, so a synthetic noisy frame is the
 simulation's own readout.
 """
 

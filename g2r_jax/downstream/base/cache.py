@@ -43,7 +43,7 @@ def default_location() -> Path:
 @functools.lru_cache(maxsize=1)
 def code_digest() -> str:
     """SHA-256 of every Python source file of the package (paths and contents, sorted)."""
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]   # the g2r_jax package
     digest = hashlib.sha256()
     for path in sorted(root.rglob("*.py")):
         digest.update(path.relative_to(root).as_posix().encode())

@@ -26,21 +26,18 @@ scale S given, or 'cast@C' a share C of each frame's cast kept, the rest taken t
 from __future__ import annotations
 
 import dataclasses
-import functools
 
 import numpy as np
+
+from g2r_jax.downstream.base.product import FITTED, adapted_views, candidate_model
 
 # The candidates the measurement kept: on the nine NUS cameras (200 views, seed 0) the selection
 # over identity, the fitted 'chroma' and these two scales kept 0.35 on 22 of 27 folds and 0.5 on
 # the others; the fitted 'chroma' is the identity on every camera and 'chroma_tone' made the
 # selection estimator worse (docs/pages/validation/content_model.md, findings 1 and 2).
 CANDIDATES = ("identity", "chroma@0.5", "chroma@0.35")
-# What the rows use when the profile has none: the model g2r-fit-profile fits (finding 4: the
-# scenes' spread beat the one median cast on the training folds' inner third, on six cameras)
-FITTED = "scenes"
 SELECTION_ESTIMATOR = "moments"   # the estimator the page's selection used (cheap to train)
 INNER_FOLDS = 3                   # the training folds split into thirds: one third validates
-_APPLY_CHUNK = 100                # views per compiled call of `content.apply`
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,58 +48,6 @@ class FoldChoice:
     model: object
     name: str
     errors: dict
-
-
-def adapted_views(model, views: np.ndarray, seed: int = 0) -> np.ndarray:
-    """Linear sRGB views (n, H, W, 3) through the content model (`g2r_jax.content.apply`, jit),
-    in chunks of `_APPLY_CHUNK`; the 'scenes' family draws each view's scene from `seed`."""
-    import dataclasses
-
-    # The model's description (source, target) is static in its pytree: without it, one compiled
-    # program serves every fold's model.
-    model = dataclasses.replace(model, source="", target=())
-    views = np.asarray(views, np.float32)
-    draws = np.random.default_rng(seed).uniform(size=len(views)).astype(np.float32)
-    if model.family != "scenes":
-        draws = [None] * len(views)
-    return np.concatenate([np.asarray(_jitted_apply()(model, views[i:i + _APPLY_CHUNK],
-                                                      None if draws[0] is None else draws[i:i + _APPLY_CHUNK]))
-                           for i in range(0, len(views), _APPLY_CHUNK)])
-
-
-@functools.lru_cache(maxsize=1)
-def _jitted_apply():
-    import jax
-
-    from g2r_jax.content import apply
-
-    return jax.jit(apply)
-
-
-def candidate_model(name: str, images: np.ndarray, lights: np.ndarray, views: np.ndarray, profile):
-    """The content model of candidate `name`: 'chroma@S' a chroma scale S given, 'cast@C' a kept
-    cast C given (family 'cast'); otherwise a family
-    of `g2r_jax.content.FAMILIES` fitted to real thumbnails `images` (white-balanced by `lights`,
-    as a DNG's AsShotNeutral would) and a sample of the CG `views`, in the camera's white-balanced
-    RGB at the median light (`fit_content_model`; 'identity' fits to the identity)."""
-    from g2r_jax import content
-
-    family, given, value = name.partition("@")
-    if given and family in ("chroma", "cast"):
-        try:
-            value = float(value)
-        except ValueError:
-            raise ValueError(f"content candidate {name!r}: expected {family}@S with S a number in [0, 1]") from None
-        if family == "cast":
-            return content.content_model(cast_scale=value, family="cast", source="given")
-        return content.content_model(value, family="chroma", source="given")
-    if name not in content.FAMILIES:
-        raise ValueError(f"unknown content candidate {name!r}; expected one of "
-                         f"{', '.join(content.FAMILIES)}, chroma@S or cast@C")
-    real = content.statistics(content.white_balanced_camera_rgb(images, lights), source="training folds")
-    neutral = np.median(lights / lights[:, 1:2], axis=0)
-    to_camera = content.srgb_to_camera_matrices(neutral[None], profile.colour)[0]
-    return content.fit_content_model(real, family=name, cg_sample=views, to_camera=to_camera)
 
 
 def inner_split(train: np.ndarray, groups, seed: int, fold: int) -> tuple:
@@ -126,8 +71,8 @@ def select_candidate(candidates, real, train: np.ndarray, views: np.ndarray, pro
     `profile`: the camera's profile (its colour model for the fitted families);
     `fit_lights(lights) -> profile` with its illuminant model fitted to `lights` (N, 3).
     **Returns:** (the kept name, {name: mean inner-third error, degrees})."""
-    from g2r_jax.downstream import training_sets
-    from g2r_jax.downstream.estimators import train_estimator
+    from g2r_jax.downstream.base import training_sets
+    from g2r_jax.downstream.illuminant.estimators import train_estimator
     from g2r_jax.measure import angular_error_degrees
 
     inner_train, validate = inner_split(train, getattr(real, "groups", None), seed, fold)
@@ -205,7 +150,7 @@ def content_row(sets, train: np.ndarray, fold: int, seed: int):
     views adapted by the fold's content model (`fold_choice`); the 'fitted_no_content' control
     has the same lights, noise and seed on the views as they are. The model is applied here
     once: the profile goes to the simulation without it."""
-    from g2r_jax.downstream import training_sets
+    from g2r_jax.downstream.base import training_sets
     from g2r_jax.pipeline import without_content
 
     fitted = without_content(sets.fitted(train, fold, seed))
@@ -218,7 +163,7 @@ def one_file_row(sets, profile, index: int, salt: int, seed: int):
     (the profile's own when it carries one; one file weighs about 1 % against the prior of real
     scenes, `content.fitting.files_weight`); without a model when its cast cannot be fitted, as
     `g2r-fit-profile` then writes none."""
-    from g2r_jax.downstream import training_sets
+    from g2r_jax.downstream.base import training_sets
     from g2r_jax.pipeline import without_content
 
     real, one = sets.real, slice(index, index + 1)
@@ -234,7 +179,7 @@ def one_file_row(sets, profile, index: int, salt: int, seed: int):
 
 def upi_content_row(sets, train: np.ndarray, fold: int, seed: int):
     """Row 'upi_content': the 'upi' row's recipe and seed on the same adapted views (sRGB-coded)."""
-    from g2r_jax.downstream import training_sets
+    from g2r_jax.downstream.base import training_sets
 
     views = training_sets.linear_to_srgb_views(_adapted(sets, train, fold, seed))
     return training_sets.upi_set(views, seed + 1)

@@ -36,8 +36,8 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from g2r_jax.downstream import thumbnails as _thumbnails
-from g2r_jax.downstream import training_sets as _sets
+from g2r_jax.downstream.base import thumbnails as _thumbnails
+from g2r_jax.downstream.base import training_sets as _sets
 from g2r_jax.io.dng_info import DngError, DngInfo
 
 WORKING_SIZE = 64      # the target's side; the packed RAW's side is half of it
@@ -343,13 +343,13 @@ def g2r_pairs(views_linear: np.ndarray, profile, seed: int, *, neutrals=None, si
 
 @jax.jit
 def _upi_rgb(keys, images):
-    from g2r_jax.downstream.upi import unprocess_rgb
+    from g2r_jax.downstream.base.upi import unprocess_rgb
 
     return jax.vmap(lambda k, x: unprocess_rgb(k, x, noise=False))(keys, images)
 
 
 def upi_pairs(views_srgb: np.ndarray, profile, seed: int, *, size: int = WORKING_SIZE) -> tuple:
-    """Training pairs of UPI RAW (Brooks et al. CVPR 2019, `downstream.upi`, no noise): sRGB-coded
+    """Training pairs of UPI RAW (Brooks et al. CVPR 2019, `downstream.base.upi`, no noise): sRGB-coded
     views (n, size/2, size/2, 3) unprocessed to camera RGB by UPI's random camera matrix and gains,
     each pixel one CFA tile of the profile's pattern between its levels (`tile_mosaic`), written
     as DNGs with the camera's tags and AsShotNeutral = the inverse of UPI's sampled white-balance

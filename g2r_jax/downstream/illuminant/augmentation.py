@@ -91,7 +91,7 @@ def _mixed_weights(n_real: int, n_synthetic: int, worth: float) -> np.ndarray:
 
 def train(estimator: str, data: AugmentedSet, recipe: Recipe, *, seed: int = 0):
     """One estimator trained by `recipe` on `data`. **Returns:** a predictor (images -> lights)."""
-    from g2r_jax.downstream import estimators
+    from g2r_jax.downstream.illuminant import estimators
 
     real_images, real_lights = data.real
     if recipe.kind == "real":

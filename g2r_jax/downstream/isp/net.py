@@ -1,6 +1,6 @@
 """The neural-ISP task's network and measures: a small UNet (Ronneberger, Fischer, Brox, "U-Net",
 MICCAI 2015) from packed RAW to display sRGB, trained with L1 loss on the one training base
-(`g2r_jax.downstream.training.fit`: Adam, cosine decay to a tenth), and the per-image PSNR, SSIM
+(`g2r_jax.downstream.base.training.fit`: Adam, cosine decay to a tenth), and the per-image PSNR, SSIM
 and CIEDE2000 of its outputs.
 
 The UNet (`IspUNet`, NCHW / OIHW like the denoiser), on packed planes (B, 4, h, w):
@@ -46,7 +46,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from g2r_jax.downstream.training import LoopConfig, fit
+from g2r_jax.downstream.base.training import LoopConfig, fit
 
 
 @dataclasses.dataclass(frozen=True)

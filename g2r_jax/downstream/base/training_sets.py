@@ -17,8 +17,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from g2r_jax.downstream import thumbnails as _thumbnails
-from g2r_jax.downstream import upi as _upi
+from g2r_jax.downstream.base import thumbnails as _thumbnails
+from g2r_jax.downstream.base import upi as _upi
 
 VIEW_SIZE = 128          # a view's side in pixels: its RAW mosaic bins to one 64 x 64 thumbnail
 VIEW_SCALE = (0.5, 1.0)  # a view's side as a fraction of the image's shorter side

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from g2r_jax.downstream import thumbnails as _thumbnails
+from g2r_jax.downstream.base import thumbnails as _thumbnails
 
 NUS_LABEL = "measured (the grey patches of a ColorChecker in each scene)"
 DNG_LABEL = "AsShotNeutral (the camera's own white balance)"

@@ -1,6 +1,6 @@
 """The burst check's denoiser: a DnCNN-like residual CNN (Zhang et al., "Beyond a Gaussian
 Denoiser", IEEE TIP 2017) on the 4 packed CFA planes, an equinox module trained with L2 loss by
-the one training base (`g2r_jax.downstream.training.fit`: Adam, cosine decay to a tenth).
+the one training base (`g2r_jax.downstream.base.training.fit`: Adam, cosine decay to a tenth).
 
 Inputs and targets are normalised planes (N, 4, h, w), x = (DN - BlackLevel) / (WhiteLevel -
 BlackLevel). A training's inputs are either real noisy crops (real pairs) or the targets with
@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from g2r_jax.downstream.training import LoopConfig, fit
+from g2r_jax.downstream.base.training import LoopConfig, fit
 
 WIDTH = 16
 DEPTH = 4                 # 3x3 convolutions: receptive field 9x9 planes (18x18 mosaic pixels)

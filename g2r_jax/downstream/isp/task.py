@@ -5,20 +5,20 @@ RAW (Brooks et al. CVPR 2019) and on the real pairs themselves (cross-validated)
 
 Protocol: one fixed developer (`g2r_jax.io.reference_render`, LibRaw at each file's AsShotNeutral)
 makes the sRGB target of every DNG, real or synthetic; the network sees the packed RAW alone, so
-it must learn the white balance too (`downstream.isp_pairs` makes the pairs, `downstream.isp_net`
+it must learn the white balance too (`downstream.isp.pairs` makes the pairs, `downstream.isp.net`
 has the UNet and the measures). The real files are split into `folds` folds
 (`g2r_jax.measure.folds_of`, the colour check's folds); for each fold and seed every row makes
 its training pairs from the training folds (never the test fold), one UNet per row is trained
-(`downstream.training.fit`) and tested on the fold's real pairs: PSNR, SSIM and CIEDE2000 per
+(`downstream.base.training.fit`) and tested on the fold's real pairs: PSNR, SSIM and CIEDE2000 per
 image, pooled over folds, then the mean over seeds and the seeds' spread.
 
 Rows (`ROWS`; the colour check's names):
 - upi: UPI on the CG views: its random camera matrix and gains; the DNG carries the camera's tags
   and AsShotNeutral = the inverse of UPI's white-balance gains;
 - fitted: the product, g2r_jax as `g2r-fit-profile` makes it: the lights fitted to the training
-  folds' as-shot neutrals (`experiment.fitted_illuminants`) and the content model (the profile's
+  folds' as-shot neutrals (`product.fitted_illuminants`) and the content model (the profile's
   own when it carries one, else the 'cast' model fitted to the training folds' thumbnails only,
-  `content_rows.candidate_model(content_rows.FITTED, ...)`), which recolours every CG frame
+  `product.candidate_model(product.FITTED, ...)`), which recolours every CG frame
   before it is made RAW: the target is developed from the DNG that carries the adapted frame;
 - fitted_no_content: control: the same lights, no content model (`pipeline.without_content`);
 - shipped: the profile as given (out of the box; only when the caller asks for it);
@@ -40,12 +40,12 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from g2r_jax.downstream import isp_pairs as _pairs
-from g2r_jax.downstream import thumbnails as _thumbnails
-from g2r_jax.downstream import training_sets as _sets
-from g2r_jax.downstream.isp_net import IspTraining
-from g2r_jax.downstream.progress import advance
-from g2r_jax.downstream.real_sets import RealSet
+from g2r_jax.downstream.base import thumbnails as _thumbnails
+from g2r_jax.downstream.base import training_sets as _sets
+from g2r_jax.downstream.base.progress import advance
+from g2r_jax.downstream.base.real_sets import RealSet
+from g2r_jax.downstream.isp import pairs as _pairs
+from g2r_jax.downstream.isp.net import IspTraining
 
 ROWS = {
     "upi": "UPI (Brooks et al. 2019)",
@@ -248,7 +248,7 @@ class _RowSets:
 
     def fitted(self, train, fold, seed):
         """The profile with its lights fitted to the training folds' (or `lights` of them; 0: its own)."""
-        from g2r_jax.downstream.experiment import fitted_illuminants
+        from g2r_jax.downstream.base.product import fitted_illuminants
 
         def make():
             lights = self.real.illuminants[train]
@@ -264,14 +264,14 @@ class _RowSets:
         """The profile's own content model, else the FITTED family fitted to `images` (None when
         their cast cannot be fitted, as g2r-fit-profile then writes none)."""
         from g2r_jax.content import describe
-        from g2r_jax.downstream import content_rows
+        from g2r_jax.downstream.base import product
 
         own = getattr(self.profile, "content", None)
         if own is not None:
             self.notes.append(f"g2r_jax rows: the profile's own content model ({describe(own)}), used as given")
             return own
         try:
-            model = content_rows.candidate_model(content_rows.FITTED, images, lights, self.views(seed), self.profile)
+            model = product.candidate_model(product.FITTED, images, lights, self.views(seed), self.profile)
         except ValueError as error:
             self.notes.append(f"{where}: no content model ({error})")
             return None
@@ -281,7 +281,7 @@ class _RowSets:
     def _g2r(self, views, profile, salt, model=None, *, as_given: bool = False, saturated=None):
         """g2r_jax pairs of `views` (through `model` first, when given) with `profile`: as given
         (its content model applied as it says) or without its content model."""
-        from g2r_jax.downstream.content_rows import adapted_views
+        from g2r_jax.downstream.base.product import adapted_views
         from g2r_jax.pipeline import without_content
 
         views = views if model is None else adapted_views(model, views, salt)
@@ -299,7 +299,7 @@ class _RowSets:
             return self._cached(("shipped", seed), lambda: self._g2r(self.views(seed), self.shipped, seed + 2, as_given=True))
         if row == "single":
             pick = int(train[np.random.default_rng(salt + 3).integers(len(train))])
-            from g2r_jax.downstream.experiment import fitted_illuminants
+            from g2r_jax.downstream.base.product import fitted_illuminants
 
             one = slice(pick, pick + 1)
             profile = fitted_illuminants(self.profile, self.real.illuminants[one], self.single_light)
@@ -356,9 +356,9 @@ def _real_pairs(real: RealSet, dngs, size: int, folds: int, masks=None):
 
 
 def _unit_keys(pairs, cg_linear, profile, shipped, **options):
-    """key(row, test, seed) of one UNet's stored outcome (`downstream.cache`): the code, the real
+    """key(row, test, seed) of one UNet's stored outcome (`downstream.base.cache`): the code, the real
     pairs (and masks), the CG images, the profiles and the options."""
-    from g2r_jax.downstream.cache import code_digest, key_of, profile_text
+    from g2r_jax.downstream.base.cache import code_digest, key_of, profile_text
 
     base = key_of(code_digest(), "isp task", list(pairs), list(cg_linear), profile_text(profile), profile_text(shipped),
                   sorted(options.items()))
@@ -368,13 +368,13 @@ def _unit_keys(pairs, cg_linear, profile, shipped, **options):
 def _outcome(model, pairs, test, shown) -> dict:
     """What the run keeps of one trained UNet: its measures on the test fold (masked, and over every
     pixel when there are masks) and its predictions of the figure's files in that fold."""
-    from g2r_jax.downstream import isp_net
+    from g2r_jax.downstream.isp import net
 
-    predicted = isp_net.predict(model, pairs[0][test])
+    predicted = net.predict(model, pairs[0][test])
     mask = pairs[2][test] if len(pairs) > 2 else None
-    out = {f"masked_{k}": v for k, v in isp_net.measure(predicted, pairs[1][test], mask).items()}
+    out = {f"masked_{k}": v for k, v in net.measure(predicted, pairs[1][test], mask).items()}
     if mask is not None:
-        out.update({f"all_{k}": v for k, v in isp_net.measure(predicted, pairs[1][test]).items()})
+        out.update({f"all_{k}": v for k, v in net.measure(predicted, pairs[1][test]).items()})
     slots = [k for k, index in enumerate(shown) if index in test]
     out["example_slots"] = np.asarray(slots, int)
     out["examples"] = predicted[[int(np.searchsorted(test, shown[k])) for k in slots]]
@@ -383,14 +383,14 @@ def _outcome(model, pairs, test, shown) -> dict:
 
 def _fold_outcomes(sets, rows, pairs, train, test, fold, seed, shown, training, cache, key) -> dict:
     """{row: outcome} of one fold and seed: from the cache where it holds them, the other rows'
-    UNets trained (together, as `isp_net.train_many` does) and stored."""
-    from g2r_jax.downstream import isp_net
+    UNets trained (together, as `net.train_many` does) and stored."""
+    from g2r_jax.downstream.isp import net
 
     outcomes = {row: cache.get(key(row)) if cache is not None else None for row in rows}
     todo = [row for row in rows if outcomes[row] is None]
     if todo:
-        models = isp_net.train_many([sets.build(row, train, fold, seed) for row in todo], [1000 * seed + fold] * len(todo),
-                                    training)
+        models = net.train_many([sets.build(row, train, fold, seed) for row in todo], [1000 * seed + fold] * len(todo),
+                                training)
         for row, model in zip(todo, models):
             outcomes[row] = _outcome(model, pairs, test, shown)
             if cache is not None:
@@ -417,19 +417,19 @@ def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEF
     (H, W, 3) or linear float32 (`training_sets.linear_images`); `rows` (see `ROWS`); `seeds`:
     each seed draws new CG views, lights and UNet initialisations (the folds stay); `folds`;
     `n`: synthetic training pairs per set; `size`: the target's side; `dngs`: one DNG per real
-    image instead of `real.files` (paths, or `isp_pairs.DngSource` in memory, e.g.
-    `isp_pairs.thumbnail_sources` of the NUS thumbnails); `shipped`: the profile of the
+    image instead of `real.files` (paths, or `pairs.DngSource` in memory, e.g.
+    `pairs.thumbnail_sources` of the NUS thumbnails); `shipped`: the profile of the
     'shipped' row (default `profile`); `lights`: fit the lights of 'fitted', 'fitted_no_content'
     and 'real_profile_light' to this many random training files only (0: the profile's own:
     the number-of-DNGs ablation, supplement Table S6); `illuminant_model`, `single_light`: the
     kinds fitted (`g2r-fit-profile --illuminant-model`); `training`: the UNet and its training
-    (`isp_net.IspTraining`); `masks`: (N, size, size) bool per real DNG, True where its target
-    holds what the real data holds (`isp_pairs.thumbnail_masks` of the NUS thumbnails: their masked
+    (`net.IspTraining`); `masks`: (N, size, size) bool per real DNG, True where its target
+    holds what the real data holds (`pairs.thumbnail_masks` of the NUS thumbnails: their masked
     chart and saturated pixels are out of the real rows' loss and out of every row's measures;
-    None for real DNGs, whose clipped pixels are content); `cache`: a `downstream.cache.
+    None for real DNGs, whose clipped pixels are content); `cache`: a `downstream.base.cache.
     DownstreamCache` whose stored outcomes (each network's measures and example images) replace
     the trainings it holds (None: every UNet is trained); `progress`: a callable taking a line of text, or a
-    `downstream.progress.Progress` (advanced by one per UNet: `trainings(...)` of them).
+    `downstream.base.progress.Progress` (advanced by one per UNet: `trainings(...)` of them).
 
     **Returns:** an `IspResult`. **Raises:** ValueError for unknown rows or a set too small for
     the folds (saying how many files it needs).

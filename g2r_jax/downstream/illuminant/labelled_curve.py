@@ -1,5 +1,5 @@
 """What adding g2r_jax RAW is worth by the number of labelled real files (issue 48): the colour
-check's rows 'real' and 'real_plus_fitted' (`downstream.augmentation`) trained on 10, 30, 100...
+check's rows 'real' and 'real_plus_fitted' (`downstream.illuminant.augmentation`) trained on 10, 30, 100...
 of the training folds' files (`experiment.illuminant_experiment(labelled=...)`), beside the full
 check's figures at all files and g2r_jax alone ('fitted', which does not depend on the labels).
 `g2r-downstream --curve 10,30,100` adds it to the report (a table and `augmentation.png`).
@@ -12,7 +12,7 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from g2r_jax.downstream import experiment
+from g2r_jax.downstream.illuminant import experiment
 
 __all__ = ["LabelledCurve", "run_curve", "ROWS"]
 
@@ -89,7 +89,7 @@ def _figure(curve: LabelledCurve, path) -> bool:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from g2r_jax.downstream.report import save_figure
+    from g2r_jax.downstream.base.figures import save_figure
 
     fig, axes = plt.subplots(1, len(curve.points), figsize=(4.2 * len(curve.points), 3.4), squeeze=False)
     for ax, (estimator, by_count) in zip(axes[0], curve.points.items()):

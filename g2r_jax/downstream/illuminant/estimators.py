@@ -13,7 +13,7 @@ camera-RGB estimates.
   is theirs, written here in JAX; the training is scaled to our budget (see `cnn_config`): the
   thumbnails 2x2-binned to 32 x 32, random 16 x 16 patches with flips (the paper: 64 x 64
   patches of images downsampled 4x, about a twentieth of the frame, like ours), Adam (optax, through
-  the one training base `g2r_jax.downstream.training.fit`),
+  the one training base `g2r_jax.downstream.base.training.fit`),
   angular loss (the release trains on the L1 distance to the green-normalised light), the best of
   several checkpoints by mean angular error on a validation split held out of the training set
   (the release: 2000 epochs, best validation L1 loss). Ours deviates in one more place: the last
@@ -37,7 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from g2r_jax.downstream.training import FitResult, LoopConfig, fit
+from g2r_jax.downstream.base.training import FitResult, LoopConfig, fit
 from g2r_jax.measure import duplicate_groups
 
 ESTIMATORS = ("cnn", "moments", "histogram")
@@ -459,7 +459,7 @@ def train_cnn(images, illuminants, *, seed: int = 0, config: CnnConfig = CnnConf
     """Train Gong's convolutional-mean CNN (see the module docstring) with `training.fit`: Adam at
     a constant rate, the best of `checkpoints` rounds by validation error; deterministic for a seed.
 
-    For augmentation (`downstream.augmentation`): `init` a `ConvolutionalMean` to start from (fine-
+    For augmentation (`downstream.illuminant.augmentation`): `init` a `ConvolutionalMean` to start from (fine-
     tuning; default `cnn_init(seed)`); `sampling` (N,) non-negative weights by which each step's
     crops draw their images (default: uniformly); `validation_from` (N,) bool: the images the
     checkpoints' validation split is drawn from (default: all)."""

@@ -14,7 +14,7 @@ Rows (`ROWS`):
 - fitted: the product, g2r_jax as `g2r-fit-profile` makes it from the training files: the
   illuminant model fitted to their lights (their as-shot neutrals) and the content model (the
   profile's own when it carries one, else the 'cast' model fitted to the training files' scenes
-  only, never the test fold: `downstream.content_rows`);
+  only, never the test fold: `downstream.illuminant.content_rows`);
 - fitted_no_content: control: 'fitted' without a content model (what the content model gains);
 - single: g2r_jax as `g2r-fit-profile` makes it from one training file (its light, its scene);
 - real: the real training files;
@@ -29,7 +29,7 @@ Rows (`ROWS`):
 - upi_content: UPI on the adapted views of 'fitted' (the lead over UPI on equal content);
 - real_plus_fitted, real_plus_upi: augmentation: the real training files together with the
   'fitted' (or 'upi') set, the recipe (real alone, mixed, pretrained) chosen on the training files
-  only (`downstream.augmentation`).
+  only (`downstream.illuminant.augmentation`).
 With `labelled`, 'real' and the augmented rows see only that many of the training files (the
 others' lights still fit the synthetic rows' illuminant model, as `g2r-fit-profile` reads a folder).
 The content's share of the gap is fitted - real_profile_light; the profile's is
@@ -46,9 +46,10 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from g2r_jax.downstream.progress import advance
-from g2r_jax.downstream.real_sets import RealSet
-from g2r_jax.downstream import training_sets as _sets
+from g2r_jax.downstream.base import training_sets as _sets
+from g2r_jax.downstream.base.product import fitted_illuminants
+from g2r_jax.downstream.base.progress import advance
+from g2r_jax.downstream.base.real_sets import RealSet
 from g2r_jax.measure import angular_error_degrees, error_summary, folds_of
 from g2r_jax.pipeline import without_content
 
@@ -109,17 +110,6 @@ class ExperimentResult:
                 "seeds": list(self.seeds), "seconds": self.seconds, "notes": self.notes,
                 "labelled": self.labelled, "files": self.files, "recipes": {f"{r}/{e}": v for (r, e), v in self.recipes.items()},
                 "summary": {f"{r}/{e}": self.summary(r, e) for r in self.rows for e in self.estimators}}
-
-
-def fitted_illuminants(profile, illuminants: np.ndarray, kind: str = "auto", seed: int = 0):
-    """The profile with its illuminant model fitted to `illuminants` (N, 3) as `g2r-fit-profile`
-    fits it to a folder's as-shot neutrals."""
-    from g2r_jax.illuminants.distributions import neutral_to_chromaticity
-    from g2r_jax.profile.fitting import illuminant_model_for
-    from g2r_jax.profile.schema import replace
-
-    chromaticities = neutral_to_chromaticity(np.asarray(illuminants, np.float64))
-    return replace(profile, illuminants=illuminant_model_for(chromaticities, profile.colour, kind, seed))
 
 
 def register_row(name: str, label: str, builder) -> None:
@@ -191,7 +181,7 @@ class _Sets:
     def prepare(self, rows, train: np.ndarray, fold: int, seed: int) -> None:
         """Make what several rows share (views, fitted lights, the fold's adapted content) before
         the rows are built side by side, so that no two threads make the same thing."""
-        from g2r_jax.downstream import content_rows
+        from g2r_jax.downstream.illuminant import content_rows
 
         rows = set(rows) | {AUGMENTED_ROWS[r] for r in rows if r in AUGMENTED_ROWS}
         if rows & set(SYNTHETIC_CG_ROWS + CONTENT_ROWS):
@@ -204,12 +194,12 @@ class _Sets:
             self.srgb_views(seed)
 
     def build(self, row: str, train: np.ndarray, fold: int, seed: int):
-        from g2r_jax.downstream import content_rows
+        from g2r_jax.downstream.illuminant import content_rows
 
         real = self.real
         salt = 1000 * seed + 10 * fold
         if row == "real" or row in AUGMENTED_ROWS:
-            from g2r_jax.downstream.augmentation import AugmentedSet
+            from g2r_jax.downstream.illuminant.augmentation import AugmentedSet
 
             labelled = self.labelled_files(train, fold, seed)
             files = (real.images[labelled], real.illuminants[labelled])
@@ -283,11 +273,11 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
     `lights`: fit those rows' model to this many training files' lights only (a random subset:
     the number-of-DNGs ablation, supplement Table S6); `other`: (RealSet, SensorProfile) of other
     real scenes for 'other_content'; `progress`: a callable taking one line of text, or a
-    `downstream.progress.Progress` (advanced by one per estimator trained:
+    `downstream.base.progress.Progress` (advanced by one per estimator trained:
     `trainings(...)` of them); `workers`: rows of a fold built and trained side by side in
     threads (None: up to `MAX_WORKERS`, at most the CPU count; the errors do not depend on it);
     `labelled`: the number of labelled real files 'real' and the augmented rows train on (None:
-    all the training folds'; the curve of issue 48); `cache`: a `downstream.cache.DownstreamCache`
+    all the training folds'; the curve of issue 48); `cache`: a `downstream.base.cache.DownstreamCache`
     whose stored estimates replace the trainings it holds (None: every estimator is trained).
 
     **Returns:** an `ExperimentResult`.
@@ -347,9 +337,9 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
 
 
 def _unit_keys(real: RealSet, profile, cg_linear, **options):
-    """key(row, estimator, test, seed) of one training's stored estimates (`downstream.cache`):
+    """key(row, estimator, test, seed) of one training's stored estimates (`downstream.base.cache`):
     the code, the real images and labels, the CG images, the profile and the options."""
-    from g2r_jax.downstream.cache import code_digest, key_of, profile_text
+    from g2r_jax.downstream.base.cache import code_digest, key_of, profile_text
 
     other = options.pop("other")
     base = key_of(code_digest(), "colour check", real.images, real.illuminants, list(cg_linear), profile_text(profile),
@@ -361,8 +351,8 @@ def _unit_keys(real: RealSet, profile, cg_linear, **options):
 def _trained(estimator: str, built, seed: int, recipes: Optional[list]):
     """A predictor trained on a row's set: an (images, lights) pair, or an augmented set (its
     recipe chosen on the training files and appended to `recipes`)."""
-    from g2r_jax.downstream.augmentation import AugmentedSet, train_chosen
-    from g2r_jax.downstream.estimators import train_estimator
+    from g2r_jax.downstream.illuminant.augmentation import AugmentedSet, train_chosen
+    from g2r_jax.downstream.illuminant.estimators import train_estimator
 
     if not isinstance(built, AugmentedSet):
         return train_estimator(estimator, *built, seed=seed)
