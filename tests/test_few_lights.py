@@ -53,7 +53,7 @@ def test_unknown_names_are_refused_before_any_work(capsys, tmp_path):
 def test_cg_scenes_fits_the_rows_files_with_the_camera_out_of_the_prior(shared_data):
     from g2r_jax.content import fitting, prior
     from g2r_jax.downstream.base import real_sets
-    from g2r_jax.downstream.content_rows import candidate_model
+    from g2r_jax.downstream.base.product import candidate_model
 
     profile = fl.camera_profile(CAMERA)
     real = real_sets.load_nus(shared_data / "estimation" / "nus" / f"{CAMERA}.npz")
