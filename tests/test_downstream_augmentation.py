@@ -53,12 +53,15 @@ def test_cross_validation_scores_every_real_file_once_with_duplicates_together()
     images = np.random.default_rng(0).uniform(0, 1, (10, 4, 4, 3)).astype(np.float32)
     images = np.concatenate([images, images[:3]])      # three files copied: one scene each
     parts = aug._cross_validation_parts(images, seed=5)
-    assert len(parts) == aug.FOLDS and all(len(p) for p in parts)
+    assert len(parts) == 3 and all(len(p) for p in parts)
     assert np.array_equal(np.sort(np.concatenate(parts)), np.arange(len(images)))
     for copy, original in zip(range(10, 13), range(3)):
         assert [copy in p for p in parts] == [original in p for p in parts]
     again = aug._cross_validation_parts(images, seed=5)
     assert all(np.array_equal(a, b) for a, b in zip(parts, again))
+    each = aug._cross_validation_parts(images, seed=5, k=aug.folds("histogram"))   # 10 distinct: one part each
+    assert len(each) == 10 and sorted(len(p) for p in each) == [1] * 7 + [2] * 3
+    assert aug.folds("cnn") == 3 and aug.folds("moments") == aug.folds("histogram") > 3
 
 
 def test_synthetic_alone_is_chosen_over_few_real_files_and_trained_once(worlds, monkeypatch):
