@@ -178,6 +178,11 @@ def test_a_tiny_run_measures_every_row(tmp_path):
     assert "UPI" in sentence and "real training" in sentence and "profile's share" in sentence
     assert result.to_dict()["summary"]["fitted/psnr"]["seed_means"]
     assert any("content model" in note for note in result.notes)
+    assert not any("each frame's cast and brightness" in n for n in result.notes)     # no 'scenes' model for an ISP
+    from g2r_jax.pipeline import without_content
+    fitted = task.run_isp_task(real, without_content(profile), cg, rows=("fitted",), seeds=(0,), n=6, training=training)
+    content_notes = [n for n in fitted.notes if "fitted to" in n]
+    assert content_notes and all(": cast, each frame" in n for n in content_notes), content_notes
     assert result.figure(tmp_path / "isp.png") and (tmp_path / "isp.png").stat().st_size > 1000
     packed, target = pairs.pair_of(real.files[0])     # a camera file from its path: binned to the task's size
     assert packed.shape == (32, 32, 4) and target.shape == (64, 64, 3) and 0.0 < target.mean() < 1.0

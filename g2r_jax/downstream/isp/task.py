@@ -262,19 +262,24 @@ class _RowSets:
 
     def content_model(self, images, lights, seed, where: str):
         """The profile's own content model, else the FITTED family fitted to `images` (None when
-        their cast cannot be fitted, as g2r-fit-profile then writes none)."""
-        from g2r_jax.content import describe
+        their cast cannot be fitted, as g2r-fit-profile then writes none); of a 'scenes' model
+        its median cast only (`content.as_cast`), as the README advises for an ISP's pairs
+        (`g2r-convert --content-cast-only`): on Canon1DsMkIII (3 seeds) the ISP trained 0.48 dB
+        better on the cast than on the scenes model (docs/pages/validation/content_model.md)."""
+        from g2r_jax.content import as_cast, describe
         from g2r_jax.downstream.base import product
 
         own = getattr(self.profile, "content", None)
         if own is not None:
-            self.notes.append(f"g2r_jax rows: the profile's own content model ({describe(own)}), used as given")
-            return own
+            model = as_cast(own) if own.family == "scenes" else own
+            self.notes.append(f"g2r_jax rows: the profile's own content model ({describe(model)}), used as given")
+            return model
         try:
             model = product.candidate_model(product.FITTED, images, lights, self.views(seed), self.profile)
         except ValueError as error:
             self.notes.append(f"{where}: no content model ({error})")
             return None
+        model = as_cast(model) if model.family == "scenes" else model
         self.notes.append(f"{where}: {describe(model)}, fitted to {len(images)} training file(s)' scenes")
         return model
 
