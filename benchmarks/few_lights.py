@@ -120,8 +120,6 @@ def scenes_content(camera, profile, images, lights, views):
     centre shrunk toward the prior of real scenes without `camera` (`content.prior.real_scenes_without`,
     as the shipped profiles' prior leaves their camera out); with no file, the content model a
     shipped profile carries (`shipped_content_model`, as `cg-cast`)."""
-    from unittest import mock
-
     from g2r_jax.content import prior as content_prior
     from g2r_jax.downstream.base.product import FITTED, candidate_model
 
@@ -129,8 +127,7 @@ def scenes_content(camera, profile, images, lights, views):
         return shipped_content_model(camera, profile.colour)
     if camera not in _PRIORS_WITHOUT:
         _PRIORS_WITHOUT[camera] = content_prior.real_scenes_without(DATA, camera)
-    with mock.patch.dict(content_prior.REAL_SCENES["medians"], _PRIORS_WITHOUT[camera]):
-        return candidate_model(FITTED, images, lights, views, profile)
+    return candidate_model(FITTED, images, lights, views, profile, prior_medians=_PRIORS_WITHOUT[camera])
 
 
 def _done(out: Path) -> set:

@@ -87,7 +87,7 @@ def _parameters_from_medians(real: dict, cg: dict, family: str) -> tuple[float, 
 
 
 def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str = "chroma", cg_sample=None,
-                      to_camera=None) -> ContentModel:
+                      to_camera=None, prior_medians: dict | None = None) -> ContentModel:
     """The content model of `family` (`model.FAMILIES`) that takes the CG images' statistics to
     the real images'.
 
@@ -97,7 +97,9 @@ def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str =
     the reference CG set; `cg_sample`: optionally CG images in linear sRGB (N, H, W, 3), H, W >=
     64 (then the parameters are found by bisection on the transformed sample, and
     `cg_statistics` is not used); `to_camera`: (3, 3) linear sRGB -> the camera's white-balanced
-    RGB for `cg_sample` (`real_images.srgb_to_camera_matrices`; default: the identity).
+    RGB for `cg_sample` (`real_images.srgb_to_camera_matrices`; default: the identity);
+    `prior_medians`: the prior of real scenes' medians to fall back on and shrink toward (default
+    `prior.REAL_SCENES`; e.g. `prior.real_scenes_without(data, camera)` in a leave-one-out run).
     **Returns:** a `ContentModel`, its `target` the real medians it was fitted to.
     """
     if family not in FAMILIES:
@@ -105,10 +107,10 @@ def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str =
     if family == "identity":
         return identity()
     if family == "cast":
-        return _cast_model(real_statistics, to_camera)
+        return _cast_model(real_statistics, to_camera, prior_medians=prior_medians)
     if family == "scenes":
-        return scenes_model(real_statistics, to_camera)
-    real, real_source = _medians(real_statistics, _prior.REAL_SCENES, "real images")
+        return scenes_model(real_statistics, to_camera, prior_medians=prior_medians)
+    real, real_source = _medians(real_statistics, _real_prior(prior_medians), "real images")
     if cg_sample is not None:
         scale, power = _parameters_from_sample(real, cg_sample, to_camera, family)
         cg_source = f"a sample of {len(cg_sample)} CG images"
@@ -121,16 +123,24 @@ def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str =
     return content_model(scale, power, family=family, source=f"{real_source} vs {cg_source}", target=real)
 
 
-def _toward_the_prior(real: dict, stats) -> dict:
+def _real_prior(prior_medians: dict | None) -> dict:
+    """`prior.REAL_SCENES`, or the given medians in its shape."""
+    if prior_medians is None:
+        return _prior.REAL_SCENES
+    return {"medians": prior_medians, "source": "the prior of real scenes given"}
+
+
+def _toward_the_prior(real: dict, stats, prior_medians: dict | None = None) -> dict:
     """The files' median casts shrunk toward the prior's by how many files there are: the median
     of n files has variance about (pi / 2) s^2 / n (s the per-image spread), the prior misses a
     camera's median by about t (the cameras' spread, `prior.CAST_SPREAD`), so the precision-
     weighted mean gives the files weight n / (n + (pi / 2) s^2 / t^2): 1 file 0.7 % (red) and
     1.7 % (blue), 150 files 52 % and 72 %. One scene's cast is not the camera's."""
+    prior = _real_prior(prior_medians)["medians"]
     out = {}
     for name, value in real.items():
         weight = files_weight(name, int(np.isfinite(stats.values[name]).sum()))
-        out[name] = weight * value + (1.0 - weight) * _prior.REAL_SCENES["medians"][name]
+        out[name] = weight * value + (1.0 - weight) * prior[name]
     return out
 
 
@@ -141,14 +151,14 @@ def files_weight(name: str, n: int) -> float:
     return n / (n + 0.5 * np.pi * (spread["per_image"] / spread["between_cameras"]) ** 2)
 
 
-def _cast_model(real_statistics, to_camera, what: str = "real images") -> ContentModel:
+def _cast_model(real_statistics, to_camera, what: str = "real images", prior_medians: dict | None = None) -> ContentModel:
     """'cast': the target colour is the real images' median grey-world cast (shrunk toward the
     prior's by their number, `_toward_the_prior`), exp(cast_red), 1, exp(cast_blue) in the
     camera's white-balanced RGB, taken to linear sRGB by to_camera^-1; `what` names a dict of
     medians in the model's source."""
-    real, source = _medians(real_statistics, _prior.REAL_SCENES, what, ("cast_red", "cast_blue"))
+    real, source = _medians(real_statistics, _real_prior(prior_medians), what, ("cast_red", "cast_blue"))
     if isinstance(real_statistics, ContentStatistics):
-        real = _toward_the_prior(real, real_statistics)
+        real = _toward_the_prior(real, real_statistics, prior_medians)
     if not all(np.isfinite(v) for v in real.values()):
         raise ValueError(f"cannot fit the content model: a median cast of {source} is not finite")
     in_camera = np.exp([real["cast_red"], 0.0, real["cast_blue"]])
@@ -175,7 +185,7 @@ def prior_cast_model(colour_model, real_medians: dict | None = None, source: str
     return _cast_model(real_medians, srgb_to_camera_matrices(neutral[None], colour_model)[0], source or "given medians")
 
 
-def scenes_model(real_statistics, to_camera, what: str = "real images") -> ContentModel:
+def scenes_model(real_statistics, to_camera, what: str = "real images", prior_medians: dict | None = None) -> ContentModel:
     """'scenes' (`g2r_jax.content.scenes`): a table of the files' own scenes, each its grey-world
     cast and its brightness, the casts re-centred on the median shrunk toward the prior's
     (`_toward_the_prior`), carried to linear sRGB like 'cast' (a target outside the sRGB gamut at
@@ -184,7 +194,7 @@ def scenes_model(real_statistics, to_camera, what: str = "real images") -> Conte
     finite cast and brightness, or when `real_statistics` is not per-file statistics (medians)."""
     from g2r_jax.content.scenes import MIN_FILES, distinct_scenes, table_rows
 
-    cast = _cast_model(real_statistics, to_camera, what)
+    cast = _cast_model(real_statistics, to_camera, what, prior_medians)
     if not isinstance(real_statistics, ContentStatistics):
         return cast
     values = real_statistics.values

@@ -269,17 +269,18 @@ class _RowSets:
         from g2r_jax.content import as_cast, describe
         from g2r_jax.downstream.base import product
 
+        def cast_of(model):
+            return as_cast(model) if model.family == "scenes" else model
+
         own = getattr(self.profile, "content", None)
         if own is not None:
-            model = as_cast(own) if own.family == "scenes" else own
-            self.notes.append(f"g2r_jax rows: the profile's own content model ({describe(model)}), used as given")
-            return model
+            self.notes.append(f"g2r_jax rows: the profile's own content model ({describe(cast_of(own))}), used as given")
+            return cast_of(own)
         try:
-            model = product.candidate_model(product.FITTED, images, lights, self.views(seed), self.profile)
+            model = cast_of(product.candidate_model(product.FITTED, images, lights, self.views(seed), self.profile))
         except ValueError as error:
             self.notes.append(f"{where}: no content model ({error})")
             return None
-        model = as_cast(model) if model.family == "scenes" else model
         self.notes.append(f"{where}: {describe(model)}, fitted to {len(images)} training file(s)' scenes")
         return model
 
