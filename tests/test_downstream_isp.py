@@ -263,3 +263,13 @@ def test_saturated_tiles_are_written_at_the_white_level(profile):
     assert np.all(packed[1][tiles[1]] == 1.0) and not np.any(plain[1][tiles[1]] == 1.0)
     assert np.array_equal(packed[1][~tiles[1]], plain[1][~tiles[1]]) and np.array_equal(packed[0], plain[0])
     assert targets[1][7:11, 21:23].min() > 0.99          # developed white inside, as the real pairs' missing pixels
+
+
+def test_the_mixed_row_holds_both_sets_and_only_the_real_pairs_masks():
+    real = (np.zeros((3, 4, 4, 4)), np.zeros((3, 8, 8, 3)), np.zeros((3, 8, 8), bool))
+    synthetic = (np.ones((5, 4, 4, 4)), np.ones((5, 8, 8, 3)))
+    packed, targets, masks = task._mixed(real, synthetic)
+    assert packed.shape == (8, 4, 4, 4) and targets.shape == (8, 8, 8, 3)
+    assert not masks[:3].any() and masks[3:].all() and packed[3:].min() == 1
+    assert len(task._mixed(real[:2], synthetic)) == 2
+    assert "real_plus_fitted" in task.ROWS and "real_plus_fitted" not in task.DEFAULT_ROWS

@@ -115,7 +115,7 @@ def _curve_check(inputs: Inputs, profile, result, *, counts, estimators, seeds, 
 def _isp_rows(profile_given: bool) -> tuple:
     from g2r_jax.downstream.isp import task as isp_task
 
-    return tuple(r for r in isp_task.ROWS if profile_given or r != "shipped")
+    return tuple(r for r in isp_task.ROWS if r in isp_task.DEFAULT_ROWS or (profile_given and r == "shipped"))
 
 
 def _isp_check(inputs: Inputs, profile, *, profile_given: bool, seeds, folds, say, cache=None) -> tuple:

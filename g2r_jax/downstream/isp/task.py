@@ -24,6 +24,10 @@ Rows (`ROWS`; the colour check's names):
 - shipped: the profile as given (out of the box; only when the caller asks for it);
 - single: g2r_jax from one training file (its light, the content model of its scene);
 - real: the real training folds' pairs;
+- real_plus_fitted: augmentation (issue 48): the real training folds' pairs and the 'fitted'
+  row's pairs in one set, so that every batch draws from both, about in proportion (the real
+  pairs keep their masks; every pixel of a synthetic pair counts); the kept round is chosen on a
+  held-out share of that set, as for every row; not in the user's check by default;
 - real_profile_light: control: the real training thumbnails rendered to linear sRGB at their
   measured white (`training_sets.real_to_linear_srgb`) and made RAW again through g2r_jax with
   the fitted lights, no content model; with masks, the tiles the real pairs write saturated
@@ -54,9 +58,11 @@ ROWS = {
     "shipped": "g2r_jax, profile as given",
     "single": "g2r_jax, one DNG",
     "real": "real training files",
+    "real_plus_fitted": "real training files + g2r_jax (fitted), mixed",
     "real_profile_light": "control: real, lights from the model",
 }
-DEFAULT_ROWS = tuple(r for r in ROWS if r != "shipped")   # 'shipped' when the caller gives a profile
+OPTIONAL_ROWS = ("shipped", "real_plus_fitted")   # 'shipped' when the caller gives a profile
+DEFAULT_ROWS = tuple(r for r in ROWS if r not in OPTIONAL_ROWS)
 METRICS = {"psnr": "PSNR (dB)", "ssim": "SSIM", "delta_e": "ΔE2000"}
 HIGHER_IS_BETTER = {"psnr": True, "ssim": True, "delta_e": False}
 EXAMPLES = 3   # real test files kept for the figure (first seed)
@@ -156,7 +162,8 @@ def _delta_phrase(result, a: str, b: str) -> str:
 def _name(row: str) -> str:
     return {"upi": "UPI", "real": "real training", "fitted": "g2r_jax (fitted)", "shipped": "g2r_jax as shipped",
             "single": "g2r_jax from one DNG", "fitted_no_content": "g2r_jax without content model",
-            "real_profile_light": "real scenes under the fitted lights"}.get(row, row)
+            "real_profile_light": "real scenes under the fitted lights",
+            "real_plus_fitted": "real training + g2r_jax"}.get(row, row)
 
 
 def _sentence(result: IspResult) -> str:
@@ -312,11 +319,15 @@ class _RowSets:
             model = self.content_model(self.real.images[one], self.real.illuminants[one], seed,
                                        f"one-DNG row, seed {seed}, fold {fold + 1}, file {pick}")
             return self._g2r(self.views(seed), profile, salt + 3, model)
+        if row == "real_plus_fitted":
+            return _mixed(self.build("real", train, fold, seed), self.build("fitted", train, fold, seed))
         fitted = self.fitted(train, fold, seed)
         if row == "fitted":
-            model = self.content_model(self.real.images[train], self.real.illuminants[train], seed,
-                                       f"content model, seed {seed}, fold {fold + 1}")
-            return self._g2r(self.views(seed), fitted, salt + 4, model)
+            def make():
+                model = self.content_model(self.real.images[train], self.real.illuminants[train], seed,
+                                           f"content model, seed {seed}, fold {fold + 1}")
+                return self._g2r(self.views(seed), fitted, salt + 4, model)
+            return self._cached(("fitted pairs", fold, seed), make)
         if row == "fitted_no_content":
             return self._g2r(self.views(seed), fitted, salt + 4)
         if row == "real_profile_light":
@@ -331,6 +342,14 @@ class _RowSets:
             views, masks, tiles = _repeat_to(self.n, views, self.masks[train], tiles)
             return (*self._g2r(views, fitted, salt + 8, saturated=tiles), masks)
         raise ValueError(f"unknown row {row!r}; expected one of {', '.join(ROWS)}")
+
+
+def _mixed(real: tuple, synthetic: tuple) -> tuple:
+    """One training set of real and synthetic pairs (packed, targets[, masks]): the real pairs'
+    masks kept, the synthetic pairs measured on every pixel."""
+    if len(real) > 2:
+        synthetic = (*synthetic[:2], np.ones(synthetic[1].shape[:3], bool))
+    return tuple(np.concatenate([a, b]) for a, b in zip(real, synthetic))
 
 
 def trainings(rows, seeds, folds: int) -> int:
