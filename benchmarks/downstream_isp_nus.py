@@ -18,7 +18,8 @@ shipped profile carries (`shipped_content_model`, applied by default).
     python benchmarks/downstream_isp_nus.py --summary out/a.json,out/b.json [--lights 0,1,10,all]
 
 `--lights` adds the few-DNG curve (Table S6): 'fitted' with its lights fitted to 1 or 10 random
-training files (content model as in 'fitted'), 0 = the shipped profile's lights and content
+training files (content model as in 'fitted'; without a run for 1, the curve's 1 is the 'single'
+row: the light and content of one file), 0 = the shipped profile's lights and content
 model (the 'shipped' row), all = the 'fitted' row. Prints one table per camera as it finishes,
 then the summary across cameras (`--summary` prints those of earlier runs' JSON files). LibRaw runs single-threaded (OMP_NUM_THREADS=1 unless set):
 on 64 x 64 files its threads only wait for each other on a shared 2-core machine.
@@ -147,6 +148,8 @@ def curve_table(document, lights) -> str:
         cells = []
         for count, label in zip(lights, labels):
             part, row = ("all", "shipped") if count == 0 else ("all", "fitted") if count is None else (str(count), "fitted")
+            if count == 1 and part not in parts and "single" in parts["all"]["rows"]:
+                part, row = "all", "single"      # one DNG: g2r-fit-profile on one file (its light and content)
             if part not in parts or row not in parts[part]["rows"]:
                 cells.append("")
                 continue
