@@ -21,17 +21,18 @@ shipped profile carries (`shipped_content_model`, applied by default).
 training files (content model as in 'fitted'; without a run for 1, the curve's 1 is the 'single'
 row: the light and content of one file), 0 = the shipped profile's lights and content
 model (the 'shipped' row), all = the 'fitted' row. Prints one table per camera as it finishes,
-then the summary across cameras (`--summary` prints those of earlier runs' JSON files). LibRaw runs single-threaded (OMP_NUM_THREADS=1 unless set):
+then the summary across cameras (`--summary` prints those of earlier runs' JSON files, merged by
+camera, run and row: a later file wins for a row both hold). The loop over cameras, the JSON and
+markdown rewritten after each camera and the resume from --json are `downstream_runner.py`'s.
+LibRaw runs single-threaded (OMP_NUM_THREADS=1 unless set):
 on 64 x 64 files its threads only wait for each other on a shared 2-core machine.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
-import time
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -41,10 +42,12 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
+import downstream_runner as runner  # noqa: E402
 from downstream_nus import CAMERAS, CARLA, NUS, camera_profile, shipped_content_model  # noqa: E402
 
 ROWS = ("upi", "fitted", "fitted_no_content", "shipped", "single", "real", "real_profile_light")
 CURVE_ROWS = ("fitted",)
+METRICS = ("psnr", "ssim", "delta_e")     # the summary table's cells
 
 
 def profiles(name: str):
@@ -107,27 +110,45 @@ def _mean(document, camera, part, row, metric):
     return document[camera][part]["summary"][f"{row}/{metric}"]["mean"]
 
 
+def _rows(document) -> list:
+    """The rows of the cameras' 'all' runs, each once (`downstream_runner.merged_order`)."""
+    return runner.merged_order(*(parts["all"]["rows"] for parts in document.values()))
+
+
 def summary_table(document) -> str:
-    """Markdown: per camera, each row's mean PSNR / SSIM / ΔE2000; then the mean of the cameras,
-    the fitted / real ΔE ratio and the PSNR gaps. `document`: {camera: {'all': IspResult.to_dict()}}."""
-    rows = next(iter(document.values()))["all"]["rows"]
+    """Markdown: per camera, each row's mean PSNR / SSIM / ΔE2000 (empty where the camera lacks the
+    row); then the mean of the cameras that hold each row, the fitted / real ΔE ratio and the PSNR
+    gaps (on the rows every camera of the line holds). `document`: {camera: {'all': IspResult.to_dict()}}."""
+    rows = _rows(document)
     head = "| camera | " + " | ".join(rows) + " | fitted / real ΔE | real - fitted PSNR | fitted - UPI PSNR |"
     out = ["Cells: PSNR dB / SSIM / ΔE2000, mean over images, folds and seeds.", "", head,
            "|---|" + "---|" * (len(rows) + 3)]
-    value = {}
-    for camera in document:
-        for r in rows:
-            for m in ("psnr", "ssim", "delta_e"):
-                value[(camera, r, m)] = _mean(document, camera, "all", r, m)
+    value = {(camera, r, m): _mean(document, camera, "all", r, m)
+             for camera in document for r in document[camera]["all"]["rows"] for m in METRICS}
     for camera in list(document) + ["**mean of cameras**"]:
-        get = ((lambda r, m, c=camera: value[(c, r, m)]) if camera in document
-               else (lambda r, m: float(np.mean([value[(c, r, m)] for c in document]))))
-        cells = [f"{get(r, 'psnr'):.2f} / {get(r, 'ssim'):.3f} / {get(r, 'delta_e'):.2f}" for r in rows]
-        out.append(f"| {camera} | " + " | ".join(cells) + " | " + _ratios(get, rows) + " |")
+        cameras = [camera] if camera in document else list(document)
+        means = _means_over(value, cameras, rows)
+        get = lambda r, m, means=means: means[(r, m)]
+        cells = [f"{get(r, 'psnr'):.2f} / {get(r, 'ssim'):.3f} / {get(r, 'delta_e'):.2f}" if (r, "psnr") in means
+                 else "" for r in rows]
+        everywhere = [r for r in rows if all((c, r, "psnr") in value for c in cameras)]
+        out.append(f"| {camera} | " + " | ".join(cells) + " | " + _ratios(get, everywhere) + " |")
     return "\n".join(out)
 
 
+def _means_over(value, cameras, rows) -> dict:
+    """{(row, metric): mean over those of `cameras` that hold the row} of `value` {(camera, row, metric): mean}."""
+    means = {}
+    for r in rows:
+        for m in METRICS:
+            held = [value[(c, r, m)] for c in cameras if (c, r, m) in value]
+            if held:
+                means[(r, m)] = float(np.mean(held))
+    return means
+
+
 def _ratios(value, rows) -> str:
+    """The cells fitted / real ΔE, real - fitted PSNR and fitted - UPI PSNR (empty without those rows)."""
     cells = []
     if {"fitted", "real"} <= set(rows):
         cells += [f"{value('fitted', 'delta_e') / value('real', 'delta_e'):.2f}x",
@@ -183,12 +204,12 @@ def targets_table(document) -> str:
 
 
 def _arguments(argv):
+    """The command line: the runner's shared arguments, then this benchmark's own."""
     from g2r_jax.downstream.isp.net import IspTraining
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--cameras", default=",".join(CAMERAS))
+    runner.add_arguments(parser, CAMERAS)
     parser.add_argument("--rows", default=",".join(ROWS))
-    parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--n", type=int, default=200, help="synthetic training pairs per set")
     parser.add_argument("--steps", type=int, default=IspTraining.steps)
     parser.add_argument("--batch", type=int, default=IspTraining.batch)
@@ -200,35 +221,32 @@ def _arguments(argv):
                              "(written white) included: the protocol before the masks")
     parser.add_argument("--content-part", choices=("cast-spread", "brightness"),
                         help="diagnosis: the 'scenes' model's cast spread or brightness alone (content_part)")
-    parser.add_argument("--json", type=Path, help="results, rewritten after each camera; a camera already in it "
-                                                  "(from a stopped run with the same file) is not run again")
-    parser.add_argument("--markdown", type=Path)
     parser.add_argument("--figures", type=Path, help="a folder: one PNG of predictions per camera")
-    parser.add_argument("--summary", help="comma-separated JSON files of earlier runs: print their tables, run nothing")
     args = parser.parse_args(argv)
     args.rows = tuple(args.rows.split(","))
     args.lights = [None if v == "all" else int(v) for v in args.lights.split(",") if v]
     return args
 
 
-def _document(results) -> dict:
-    return {name: {str(k): r.to_dict() for k, r in parts.items()} for name, parts in results.items()}
+def camera_entry(results) -> dict:
+    """One camera's JSON entry: {'all': IspResult.to_dict(), '10': ..., ...}."""
+    return {str(k): r.to_dict() for k, r in results.items()}
 
 
-def _write(args, document, lines, total) -> None:
-    """The markdown and JSON of the cameras done so far (rewritten after each camera)."""
-    from g2r_jax.io.atomic import atomic_write_bytes
-
-    if args.markdown:
-        args.markdown.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(args.markdown, ("\n".join(lines) + "\n").encode())
-    if args.json:       # atomic: a run stopped while writing leaves the last complete file to resume from
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(args.json, json.dumps({"seconds": total, "arguments": {k: str(v) for k, v in vars(args).items()},
-                                                  "cameras": document}, indent=1).encode())
+def camera_lines(args, name: str, results) -> list:
+    """The markdown block of a camera run now (its 'all' run's table and sentence); its figure
+    with --figures."""
+    result = results["all"]
+    if args.figures:
+        args.figures.mkdir(parents=True, exist_ok=True)
+        result.figure(args.figures / f"isp_{name}.png")
+    return [f"## {name} ({result.images} real images; {result.seconds:.0f} s)", "", result.table(), "",
+            result.sentence(), ""]
 
 
 def _closing(args, document, total) -> list:
+    """The markdown after the cameras: the summary, the issue's targets, the few-DNG curve with
+    --lights, the settings."""
     lines = ["## All cameras", "", summary_table(document), ""]
     if all({"fitted", "upi", "real"} <= set(document[camera]["all"]["rows"]) for camera in document):
         lines += ["## The issue's targets", "", targets_table(document), ""]
@@ -241,17 +259,18 @@ def _closing(args, document, total) -> list:
 
 
 def _summary(args) -> int:
-    """Print the tables of earlier runs' JSON files (cameras merged, a later file winning)."""
-    document, seconds = {}, 0.0
-    for path in args.summary.split(","):
-        loaded = json.loads(Path(path).read_text())
-        document.update(loaded["cameras"])
-        seconds += loaded["seconds"]
+    """Print the tables of earlier runs' JSON files (merged by camera, run and row, a later file winning)."""
+    paths = args.summary.split(",")
+    document, seconds = runner.read_runs(paths, nesting=2)
+    if not document:
+        print("no results in " + ", ".join(paths), file=sys.stderr)
+        return 2
     print("\n".join(_closing(args, document, seconds)))
     return 0
 
 
 def main(argv=None) -> int:
+    """Run the cameras (or print --summary); 0 when done, 2 without the data."""
     from PIL import Image
 
     from g2r_jax.runtime import compile_cache
@@ -266,43 +285,16 @@ def main(argv=None) -> int:
     if args.content_part:
         content_part(args.content_part)
     cg = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))]
-    say = lambda m: print(f"  {m}", file=sys.stderr, flush=True)
-    start = time.perf_counter()
-    results, lines, earlier = {}, [], _earlier(args)
-    for name in args.cameras.split(","):
-        if name in earlier:
-            say(f"{name}: kept from {args.json}")
-            lines += [f"## {name} (from the earlier run in {args.json.name})", ""]
-            continue
-        results[name] = run_camera(name, args, cg, say)
-        result = results[name]["all"]
-        block = [f"## {name} ({result.images} real images; {result.seconds:.0f} s)", "", result.table(), "",
-                 result.sentence(), ""]
-        print("\n".join(block), flush=True)
-        lines += block
-        if args.figures:
-            args.figures.mkdir(parents=True, exist_ok=True)
-            result.figure(args.figures / f"isp_{name}.png")
-        elapsed = time.perf_counter() - start
-        document = {**earlier, **_document(results)}
-        _write(args, document, lines + _closing(args, document, elapsed), elapsed)
-    total = time.perf_counter() - start
-    document = {**earlier, **_document(results)}
-    closing = _closing(args, document, total)
-    print("\n".join(closing))
-    _write(args, document, lines + closing, total)
+    benchmark = runner.CameraBenchmark(
+        run=lambda name: run_camera(name, args, cg, runner.say), entry=camera_entry,
+        camera_lines=lambda name, results: camera_lines(args, name, results),
+        kept_lines=lambda name, entry: [f"## {name} (from the earlier run in {args.json.name})", ""],
+        closing_lines=lambda document, seconds: _closing(args, document, seconds),
+        header=lambda seconds: {"seconds": seconds, "arguments": {k: str(v) for k, v in vars(args).items()}},
+        indent=1)
+    runner.run_cameras(benchmark, {name: name for name in args.cameras.split(",")}, json_path=args.json,
+                       markdown_path=args.markdown)
     return 0
-
-
-def _earlier(args) -> dict:
-    """The cameras of an earlier run's --json file (a stopped run resumes after them), else {}."""
-    if not args.json or not args.json.is_file():
-        return {}
-    try:
-        return dict(json.loads(args.json.read_text()).get("cameras", {}))
-    except (OSError, ValueError) as error:
-        print(f"  {args.json}: not read ({error}); every camera runs", file=sys.stderr)
-        return {}
 
 
 if __name__ == "__main__":

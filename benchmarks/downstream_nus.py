@@ -18,11 +18,13 @@ profiles without measured lights have them).
 
 Prints one table per camera as it finishes, then the summary across cameras. With --json the
 results are written after each camera (atomically, per-image errors included), and a run stopped
-and started again with the same --json keeps the cameras it holds and runs the others. `--labelled`
-(issue 48, augmentation): each camera once per number of labelled real files that 'real' and the
-augmented rows ('real_plus_fitted', 'real_plus_upi': the recipe chosen on the training files,
-`g2r_jax.downstream.illuminant.augmentation`) train on, drawn from the training folds; then the curve
-(mean of the cameras per row and number).
+and started again with the same --json keeps the cameras it holds and runs the others
+(`downstream_runner.py`, shared with the ISP benchmark). `--summary` merges its files by camera,
+row and estimator: runs of different --rows give one table of every row, a later file winning.
+`--labelled` (issue 48, augmentation): each camera once per number of labelled real files that
+'real' and the augmented rows ('real_plus_fitted', 'real_plus_upi': the recipe chosen on the
+training files, `g2r_jax.downstream.illuminant.augmentation`) train on, drawn from the training
+folds; then the curve (mean of the cameras per row and number).
 """
 
 from __future__ import annotations
@@ -30,13 +32,15 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import downstream_runner as runner  # noqa: E402
+
 DATA = ROOT.parent / "shared" / "data"
 NUS = DATA / "estimation" / "nus"
 CARLA = DATA / "cg" / "carla"
@@ -79,15 +83,15 @@ def other_camera(name: str, cameras) -> str:
     return CAMERAS[(index + 1) % len(CAMERAS)]
 
 
-def main(argv=None) -> int:
-    from g2r_jax.downstream.illuminant import experiment, reporting
+def _arguments(argv):
+    """The command line: the runner's shared arguments, then this benchmark's own."""
+    from g2r_jax.downstream.illuminant import experiment
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--cameras", default=",".join(CAMERAS))
+    runner.add_arguments(parser, CAMERAS)
     parser.add_argument("--rows", default=",".join(r for r in experiment.ROWS if r not in experiment.CONTENT_ROWS),
                         help="default: every row but the content model's (benchmarks/content_model.py measures those)")
     parser.add_argument("--estimators", default="cnn,moments,histogram")
-    parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--n", type=int, default=500)
     parser.add_argument("--illuminant-model", default="auto")
     parser.add_argument("--lights", type=int, help="fit the lights to this many training files only "
@@ -95,72 +99,72 @@ def main(argv=None) -> int:
     parser.add_argument("--labelled", default="", help="the augmentation curve: numbers of labelled real files, "
                         "e.g. 10,30,100,all (each camera runs once per number)")
     parser.add_argument("--jobs", type=int, default=1, help="cameras run in this many processes at once")
-    parser.add_argument("--json", type=Path)
-    parser.add_argument("--markdown", type=Path)
-    parser.add_argument("--summary", help="comma-separated JSON files of earlier runs: print their tables, run nothing")
-    args = parser.parse_args(argv)
+    return parser.parse_args(argv)
+
+
+def main(argv=None) -> int:
+    """Run the cameras (or print --summary); 0 when done, 2 without the data."""
+    args = _arguments(argv)
     if args.summary:
         return _summary(args.summary.split(","))
     if not NUS.is_dir() or not CARLA.is_dir():
         print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
         return 2
-    cameras = args.cameras.split(",")
-    rows = args.rows.split(",")
-    estimators = tuple(args.estimators.split(","))
-    start = time.perf_counter()
+    cameras, rows, estimators = args.cameras.split(","), args.rows.split(","), tuple(args.estimators.split(","))
     counts = [None if v == "all" else int(v) for v in args.labelled.split(",") if v] or [None]
-    keys = [name if len(counts) == 1 and counts[0] is None else f"{name}@{'all' if c is None else c}"
-            for name in cameras for c in counts]
-    jobs = [(name, rows, estimators, args.seeds, args.n, args.illuminant_model, args.lights, cameras, c)
-            for name in cameras for c in counts]
-    results = _earlier(args.json)
-    todo = [(key, job) for key, job in zip(keys, jobs) if key not in results]
-    for key in keys:
-        if key in results:
-            print(f"  {key}: kept from {args.json}", file=sys.stderr, flush=True)
-    if args.jobs > 1:
-        import multiprocessing
+    jobs = {camera_key(name, count, counts): (name, rows, estimators, args.seeds, args.n, args.illuminant_model,
+                                             args.lights, cameras, count)
+            for name in cameras for count in counts}
 
-        with multiprocessing.get_context("spawn").Pool(args.jobs) as pool:
-            for key, result in zip([k for k, _ in todo], pool.imap(run_camera, [j for _, j in todo])):
-                results[key] = result
-                _write_json(args, results, estimators, time.perf_counter() - start)
-    else:
-        for key, job in todo:
-            results[key] = run_camera(job)
-            _write_json(args, results, estimators, time.perf_counter() - start)
-    results = {key: results[key] for key in keys}
-    lines = []
-    for name, result in results.items():
-        block = [f"## {name} ({len(result.errors[(rows[0], estimators[0])][0])} real images; {result.seconds:.0f} s)",
-                 "", reporting.table(result), ""]
-        block += [reporting.sentence(result, e) for e in estimators] + [""]
-        lines += block
-    print("\n".join(lines), flush=True)
-    summary = summary_table(results, rows, estimators)
-    total = time.perf_counter() - start
-    lines += ["## All cameras: mean error (degrees), pooled over seeds", "", summary, ""]
-    if args.labelled:
-        lines += ["## Labelled real files: mean of the cameras (degrees)", "", curve_table(results, rows, estimators), ""]
-    lines += [f"Total {total / 60:.1f} min."]
-    print("\n".join(lines[-5:]))
-    if args.markdown:
-        args.markdown.parent.mkdir(parents=True, exist_ok=True)
-        args.markdown.write_text("\n".join(lines) + "\n")
-    _write_json(args, results, estimators, total)
+    def closing(entries, seconds):
+        """The closing tables of the JSON entries so far."""
+        return closing_lines(results_from_entries(entries), rows, estimators, bool(args.labelled), seconds)
+
+    benchmark = runner.CameraBenchmark(
+        run=run_camera, entry=result_entry, camera_lines=camera_lines,
+        kept_lines=lambda key, entry: camera_lines(key, result_from_entry(entry)), closing_lines=closing,
+        header=lambda seconds: {"seconds": seconds, "n": args.n}, is_done=is_result_entry)
+    runner.run_cameras(benchmark, jobs, json_path=args.json, markdown_path=args.markdown, processes=args.jobs)
     return 0
 
 
+def camera_key(name: str, count, counts) -> str:
+    """The JSON key of one camera's run: the camera, or with --labelled "camera@count" ("@all")."""
+    if len(counts) == 1 and counts[0] is None:
+        return name
+    return f"{name}@{'all' if count is None else count}"
+
+
+def camera_lines(key: str, result) -> list:
+    """The markdown block of one camera: its table and each estimator's sentence."""
+    from g2r_jax.downstream.illuminant import reporting
+
+    images = len(next(iter(result.errors.values()))[0])
+    block = [f"## {key} ({images} real images; {result.seconds:.0f} s)", "", reporting.table(result), ""]
+    return block + [reporting.sentence(result, e) for e in result.estimators] + [""]
+
+
+def closing_lines(results, rows, estimators, labelled: bool, seconds: float) -> list:
+    """The markdown after the cameras: the summary (the rows and estimators asked for, then any
+    other the results hold), the labelled-files curve with --labelled, the time."""
+    rows = runner.merged_order(rows, *(result.rows for result in results.values()))
+    estimators = runner.merged_order(estimators, *(result.estimators for result in results.values()))
+    lines = ["## All cameras: mean error (degrees), pooled over seeds", "", summary_table(results, rows, estimators), ""]
+    if labelled:
+        lines += ["## Labelled real files: mean of the cameras (degrees)", "", curve_table(results, rows, estimators), ""]
+    return lines + [f"Total {seconds / 60:.1f} min."]
+
+
 def _summary(paths) -> int:
-    """Print the tables of earlier runs' JSON files (a later file's camera wins)."""
-    results = {}
-    for path in paths:
-        results.update(_earlier(Path(path)))
+    """Print the tables of earlier runs' JSON files, merged by camera, row and estimator (a later
+    file's value winning for a cell both hold; a cell no file holds left empty)."""
+    entries, _ = runner.read_runs(paths, is_done=is_result_entry)
+    results = results_from_entries(entries)
     if not results:
         print("no results in " + ", ".join(paths), file=sys.stderr)
         return 2
-    first = next(iter(results.values()))
-    rows, estimators = list(first.rows), list(first.estimators)
+    rows = runner.merged_order(*(result.rows for result in results.values()))
+    estimators = runner.merged_order(*(result.estimators for result in results.values()))
     print("## All cameras: mean error (degrees), pooled over seeds\n\n" + summary_table(results, rows, estimators))
     if any("@" in key for key in results):
         print("\n## Labelled real files: mean of the cameras (degrees)\n\n" + curve_table(results, rows, estimators))
@@ -169,16 +173,22 @@ def _summary(paths) -> int:
     return 0
 
 
+def _labelled_counts(results) -> list:
+    """The numbers of labelled files among the keys ("camera@count"), ascending, 'all' last."""
+    counts = {key.split("@")[1] for key in results if "@" in key}
+    return sorted(counts, key=lambda c: (c == "all", int(c) if c != "all" else 0))
+
+
 def camera_curve_table(results, estimator: str) -> str:
     """Markdown: per camera and number of labelled files, real alone -> real + g2r_jax (change)."""
-    counts = sorted({key.split("@")[1] for key in results if "@" in key}, key=lambda c: (c == "all", int(c) if c != "all" else 0))
+    counts = _labelled_counts(results)
     cameras = list(dict.fromkeys(key.split("@")[0] for key in results if "@" in key))
     out = ["| camera | " + " | ".join(f"{c} files" for c in counts) + " |", "|---|" + "---|" * len(counts)]
     for camera in cameras:
         cells = []
         for count in counts:
             r = results.get(f"{camera}@{count}")
-            if r is None or not {"real", "real_plus_fitted"} <= set(r.rows):
+            if r is None or not all((row, estimator) in r.errors for row in ("real", "real_plus_fitted")):
                 cells.append("")
                 continue
             alone, added = (r.summary(row, estimator)["mean"] for row in ("real", "real_plus_fitted"))
@@ -187,42 +197,34 @@ def camera_curve_table(results, estimator: str) -> str:
     return "\n".join(out)
 
 
-def _write_json(args, results, estimators, seconds) -> None:
-    """The results so far as JSON (atomically): summaries, decompositions and per-image errors."""
+def is_result_entry(entry: dict) -> bool:
+    """Whether a JSON entry holds a result (its per-image errors), not a run to make again."""
+    return "errors" in entry
+
+
+def result_entry(result) -> dict:
+    """One camera's JSON entry: its summaries, decompositions and per-image errors."""
     from g2r_jax.downstream.illuminant import reporting
-    from g2r_jax.io.atomic import atomic_write_bytes
 
-    if not args.json:
-        return
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    document = {name: {**r.to_dict(), "decomposition": {e: reporting.decomposition(r, e) for e in estimators},
-                       "errors": {f"{row}/{e}": [np.asarray(a).tolist() for a in per_seed]
-                                  for (row, e), per_seed in r.errors.items()}}
-                for name, r in results.items()}
-    atomic_write_bytes(args.json, json.dumps({"seconds": seconds, "n": args.n, "cameras": document}).encode())
+    return {**result.to_dict(), "decomposition": {e: reporting.decomposition(result, e) for e in result.estimators},
+            "errors": {f"{row}/{e}": [np.asarray(a).tolist() for a in per_seed]
+                       for (row, e), per_seed in result.errors.items()}}
 
 
-def _earlier(path) -> dict:
-    """The results of an earlier run's --json (per-image errors rebuilt into `ExperimentResult`s)."""
+def result_from_entry(entry: dict):
+    """The `ExperimentResult` of a JSON entry (per-image errors rebuilt)."""
     from g2r_jax.downstream.illuminant.experiment import ExperimentResult
 
-    if not path or not Path(path).is_file():
-        return {}
-    try:
-        cameras = json.loads(Path(path).read_text())["cameras"]
-    except (OSError, ValueError, KeyError) as error:
-        print(f"  {path}: not read ({error}); every camera runs", file=sys.stderr)
-        return {}
-    out = {}
-    for key, doc in cameras.items():
-        if "errors" not in doc:
-            continue
-        errors = {tuple(name.split("/")): [np.asarray(a) for a in per_seed] for name, per_seed in doc["errors"].items()}
-        recipes = {tuple(name.split("/")): v for name, v in doc.get("recipes", {}).items()}
-        out[key] = ExperimentResult(camera=doc["camera"], rows=tuple(doc["rows"]), estimators=tuple(doc["estimators"]),
-                                    seeds=tuple(doc["seeds"]), errors=errors, seconds=doc["seconds"], notes=doc["notes"],
-                                    recipes=recipes, labelled=doc.get("labelled"), files=doc.get("files", 0))
-    return out
+    errors = {tuple(name.split("/")): [np.asarray(a) for a in per_seed] for name, per_seed in entry["errors"].items()}
+    recipes = {tuple(name.split("/")): v for name, v in entry.get("recipes", {}).items()}
+    return ExperimentResult(camera=entry["camera"], rows=tuple(entry["rows"]), estimators=tuple(entry["estimators"]),
+                            seeds=tuple(entry["seeds"]), errors=errors, seconds=entry["seconds"], notes=entry["notes"],
+                            recipes=recipes, labelled=entry.get("labelled"), files=entry.get("files", 0))
+
+
+def results_from_entries(entries: dict) -> dict:
+    """{key: ExperimentResult} of the JSON entries that hold results."""
+    return {key: result_from_entry(entry) for key, entry in entries.items() if is_result_entry(entry)}
 
 
 def run_camera(job):
@@ -247,33 +249,49 @@ def run_camera(job):
         progress=lambda m: print(f"  {m}", file=sys.stderr, flush=True))
 
 
+def _means(result, rows, estimator) -> dict:
+    """{row: mean error} of the rows `result` holds for `estimator`."""
+    return {row: result.summary(row, estimator)["mean"] for row in rows if (row, estimator) in result.errors}
+
+
 def curve_table(results, rows, estimators) -> str:
     """Markdown: per estimator and number of labelled files, each row's error averaged over the
-    cameras, and the augmented row against real alone."""
-    counts = sorted({key.split("@")[1] for key in results if "@" in key}, key=lambda c: (c == "all", int(c) if c != "all" else 0))
+    cameras that hold it, and the augmented row against real alone (where the same cameras hold
+    both)."""
     out = ["| estimator | labelled files | " + " | ".join(rows) + " | real + g2r_jax vs real |",
            "|---|---|" + "---|" * (len(rows) + 1)]
     for e in estimators:
-        for count in counts:
+        for count in _labelled_counts(results):
             parts = [r for key, r in results.items() if key.endswith(f"@{count}")]
-            means = {row: float(np.mean([r.summary(row, e)["mean"] for r in parts])) for row in rows}
+            holding = {row: [r for r in parts if (row, e) in r.errors] for row in rows}
+            means = {row: float(np.mean([r.summary(row, e)["mean"] for r in held]))
+                     for row, held in holding.items() if held}
+            if not means:
+                continue
             change = (f"{means['real_plus_fitted'] / means['real'] - 1:+.0%}"
-                      if {"real", "real_plus_fitted"} <= set(rows) else "")
-            out.append(f"| {e} | {count} | " + " | ".join(f"{means[row]:.2f}" for row in rows) + f" | {change} |")
+                      if {"real", "real_plus_fitted"} <= set(means) and holding["real"] == holding["real_plus_fitted"]
+                      else "")
+            cells = [f"{means[row]:.2f}" if row in means else "" for row in rows]
+            out.append(f"| {e} | {count} | " + " | ".join(cells) + f" | {change} |")
     return "\n".join(out)
 
 
 def summary_table(results, rows, estimators) -> str:
+    """Markdown: per camera and estimator, each row's mean error (empty where the camera lacks the
+    row) and g2r_jax fitted against UPI."""
     from g2r_jax.downstream.illuminant.experiment import ROWS
 
     head = "| camera | estimator | " + " | ".join(ROWS[r] for r in rows) + " | g2r_jax fitted vs UPI |"
     out = [head, "|---|---|" + "---|" * (len(rows) + 1)]
     for name, result in results.items():
         for e in estimators:
-            means = {r: result.summary(r, e)["mean"] for r in rows}
+            means = _means(result, rows, e)
+            if not means:
+                continue
             gain = (f"{100 * (1 - means['fitted'] / means['upi']):.0f} % lower" if "fitted" in means and "upi" in means
                     else "")
-            out.append(f"| {name} | {e} | " + " | ".join(f"{means[r]:.2f}" for r in rows) + f" | {gain} |")
+            cells = [f"{means[r]:.2f}" if r in means else "" for r in rows]
+            out.append(f"| {name} | {e} | " + " | ".join(cells) + f" | {gain} |")
     return "\n".join(out)
 
 
