@@ -4,6 +4,8 @@ run of every row."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -273,3 +275,17 @@ def test_the_mixed_row_holds_both_sets_and_only_the_real_pairs_masks():
     assert not masks[:3].any() and masks[3:].all() and packed[3:].min() == 1
     assert len(task._mixed(real[:2], synthetic)) == 2
     assert "real_plus_fitted" in task.ROWS and "real_plus_fitted" not in task.DEFAULT_ROWS
+
+
+def test_fine_tuning_starts_from_the_given_network(profile):
+    sources = _sources(profile, 4)[0]
+    packed, targets, _, _ = pairs.pairs_of(sources)
+    config = net.IspTraining(steps=2, steps_per_round=2, batch=2, width=2, together=False)
+    pretrained = net.train_many([(packed, targets)], [3], config)[0]
+    frozen = dataclasses.replace(config, learning_rate=0.0)
+    kept = net.train_many([(packed, targets)], [0], frozen, initial=[pretrained])[0]
+    np.testing.assert_allclose(net.predict(kept, packed), net.predict(pretrained, packed), atol=1e-6)
+    fresh = net.train_many([(packed, targets)], [0], frozen)[0]
+    assert not np.allclose(net.predict(fresh, packed), net.predict(pretrained, packed), atol=1e-4)
+    with pytest.raises(ValueError, match="initial"):
+        net.train_many([(packed, targets)], [0], frozen, initial=[])

@@ -216,23 +216,26 @@ def _padded_validation(held, capacity: int):
     return (*(pad(a) for a in held), pair_weights)
 
 
-def train_many(sets, seeds, training: IspTraining = IspTraining()) -> list:
+def train_many(sets, seeds, training: IspTraining = IspTraining(), initial=None) -> list:
     """One UNet per training set, each from its seed's initialisation, batches and held-out share
     (deterministic).
 
     **Arguments:** `sets`: (packed (N, h, w, 4), targets (N, 2h, 2w, 3)[, mask (N, 2h, 2w)])
     arrays, all of one image size (a mask's False pixels are out of the loss); `seeds`: one per set; `training`: an `IspTraining`. With `together` the sets
-    are padded to one length and trained as one vmapped program.
+    are padded to one length and trained as one vmapped program; `initial`: one trained
+    `IspUNet` per set to start from (fine-tuning: the same schedule, from its weights) instead
+    of the seed's initialisation.
     **Returns:** one trained `IspUNet` per set.
     """
-    if len(sets) != len(seeds):
-        raise ValueError(f"{len(sets)} training sets but {len(seeds)} seeds")
+    if len(sets) != len(seeds) or (initial is not None and len(initial) != len(sets)):
+        raise ValueError(f"{len(sets)} training sets but {len(seeds)} seeds"
+                         + ("" if initial is None else f" and {len(initial)} initial networks"))
     if min((len(arrays[0]) for arrays in sets), default=1) < 1:
         raise ValueError("an ISP training set is empty")
     splits = [_split(_channels_first(*arrays), s, training.validation) for arrays, s in zip(sets, seeds)]
     prepared, held = [a for a, _ in splits], [b for _, b in splits]
     counts = [len(arrays[0]) for arrays in prepared]
-    models = [init_unet(int(s), training.width) for s in seeds]
+    models = list(initial) if initial is not None else [init_unet(int(s), training.width) for s in seeds]
     validate = None if any(h is None for h in held) else _validation_error
     if _together(training) and len(sets) > 1:
         capacity = max(counts)

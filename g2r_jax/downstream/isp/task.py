@@ -28,6 +28,10 @@ Rows (`ROWS`; the colour check's names):
   row's pairs in one set, so that every batch draws from both, about in proportion (the real
   pairs keep their masks; every pixel of a synthetic pair counts); the kept round is chosen on a
   held-out share of that set, as for every row; not in the user's check by default;
+- real_pretrained: augmentation (issue 48): the 'fitted' row's UNet (trained on g2r_jax pairs)
+  fine-tuned on the real training folds' pairs (the same schedule, from its weights, the round
+  kept on a held-out share of the real pairs); its pretraining is one more training of the
+  same length, so it has twice the real row's compute; not in the user's check by default;
 - real_profile_light: control: the real training thumbnails rendered to linear sRGB at their
   measured white (`training_sets.real_to_linear_srgb`) and made RAW again through g2r_jax with
   the fitted lights, no content model; with masks, the tiles the real pairs write saturated
@@ -59,9 +63,11 @@ ROWS = {
     "single": "g2r_jax, one DNG",
     "real": "real training files",
     "real_plus_fitted": "real training files + g2r_jax (fitted), mixed",
+    "real_pretrained": "real training files, pretrained on g2r_jax (fitted)",
     "real_profile_light": "control: real, lights from the model",
 }
-OPTIONAL_ROWS = ("shipped", "real_plus_fitted")   # 'shipped' when the caller gives a profile
+OPTIONAL_ROWS = ("shipped", "real_plus_fitted", "real_pretrained")
+PRETRAINED_ON = {"real_pretrained": ("fitted", "real")}   # row: (the row it starts from, the row it fine-tunes on)   # 'shipped' when the caller gives a profile
 DEFAULT_ROWS = tuple(r for r in ROWS if r not in OPTIONAL_ROWS)
 METRICS = {"psnr": "PSNR (dB)", "ssim": "SSIM", "delta_e": "ΔE2000"}
 HIGHER_IS_BETTER = {"psnr": True, "ssim": True, "delta_e": False}
@@ -163,7 +169,8 @@ def _name(row: str) -> str:
     return {"upi": "UPI", "real": "real training", "fitted": "g2r_jax (fitted)", "shipped": "g2r_jax as shipped",
             "single": "g2r_jax from one DNG", "fitted_no_content": "g2r_jax without content model",
             "real_profile_light": "real scenes under the fitted lights",
-            "real_plus_fitted": "real training + g2r_jax"}.get(row, row)
+            "real_plus_fitted": "real training + g2r_jax",
+            "real_pretrained": "real training pretrained on g2r_jax"}.get(row, row)
 
 
 def _sentence(result: IspResult) -> str:
@@ -413,13 +420,21 @@ def _fold_outcomes(sets, rows, pairs, train, test, fold, seed, shown, training, 
 
     outcomes = {row: cache.get(key(row)) if cache is not None else None for row in rows}
     todo = [row for row in rows if outcomes[row] is None]
-    if todo:
-        models = net.train_many([sets.build(row, train, fold, seed) for row in todo], [1000 * seed + fold] * len(todo),
-                                training)
-        for row, model in zip(todo, models):
-            outcomes[row] = _outcome(model, pairs, test, shown)
-            if cache is not None:
-                cache.put(key(row), outcomes[row])
+    plain = [row for row in todo if row not in PRETRAINED_ON]
+    seed_of = 1000 * seed + fold
+    models = dict(zip(plain, net.train_many([sets.build(row, train, fold, seed) for row in plain], [seed_of] * len(plain),
+                                            training))) if plain else {}
+    for row in todo:
+        if row in PRETRAINED_ON:
+            start, on = PRETRAINED_ON[row]
+            if start not in models:        # its outcome may be stored, its network is not
+                models[start] = net.train_many([sets.build(start, train, fold, seed)], [seed_of], training)[0]
+            models[row] = net.train_many([sets.build(on, train, fold, seed)], [seed_of], training,
+                                         initial=[models[start]])[0]
+    for row in todo:
+        outcomes[row] = _outcome(models[row], pairs, test, shown)
+        if cache is not None:
+            cache.put(key(row), outcomes[row])
     return outcomes
 
 
