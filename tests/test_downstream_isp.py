@@ -289,3 +289,21 @@ def test_fine_tuning_starts_from_the_given_network(profile):
     assert not np.allclose(net.predict(fresh, packed), net.predict(pretrained, packed), atol=1e-4)
     with pytest.raises(ValueError, match="initial"):
         net.train_many([(packed, targets)], [0], frozen, initial=[])
+
+
+def test_the_control_row_holds_the_real_inputs_where_the_masks_hide_the_targets(profile):
+    from g2r_jax.downstream.base.real_sets import RealSet
+
+    _, images, lights = _sources(profile, 6)
+    images[:, 10:15, 20:27] = 0.0                     # missing pixels, as the NUS thumbnails store them
+    real = RealSet(name="test", images=images, illuminants=lights)
+    masks = pairs.thumbnail_masks(images)
+    real, real_pairs, _, _ = task._real_pairs(real, pairs.thumbnail_sources(images, lights, profile), 64, 3, masks)
+    sets = task._RowSets(real, real_pairs, profile, profile, np.zeros((1, 64, 64, 3), np.float32), n=6, size=64,
+                         view_size=32, illuminant_model="auto", single_light="auto", lights=None, masks=real_pairs[2])
+    train = np.arange(6)
+    packed, _, control_masks = sets.build("real_profile_light", train, 0, 0)
+    hidden = ~control_masks[:, ::2, ::2]
+    assert hidden.any() and np.array_equal(control_masks, masks)
+    assert np.array_equal(packed[hidden], real_pairs[0][hidden])
+    assert not np.allclose(packed[~hidden], real_pairs[0][~hidden], atol=1e-3)   # elsewhere: made again

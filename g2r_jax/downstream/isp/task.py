@@ -34,8 +34,12 @@ Rows (`ROWS`; the colour check's names):
   same length, so it has twice the real row's compute; not in the user's check by default;
 - real_profile_light: control: the real training thumbnails rendered to linear sRGB at their
   measured white (`training_sets.real_to_linear_srgb`) and made RAW again through g2r_jax with
-  the fitted lights, no content model; with masks, the tiles the real pairs write saturated
-  (their missing pixels) are saturated here too, so that both rows' inputs hold the same there.
+  the fitted lights, no content model; with masks, its inputs hold the real pairs' own values
+  wherever the masks hide the targets (the real pairs' missing pixels are written white before
+  the thumbnails are binned, so their tiles there hold partly white values; a control whose
+  tiles were written wholly white instead trained 0.58 dB below one holding the real values,
+  Canon1DsMkIII, 3 seeds, its lights and exposures those of the real files: the real row's
+  figure within its seeds' spread with the real values).
   The profile's share of the gap to real training is real_profile_light - real, the CG content's
   is fitted - real_profile_light.
 """
@@ -344,10 +348,12 @@ class _RowSets:
             if self.masks is None:
                 views, = _repeat_to(self.n, views)
                 return self._g2r(views, fitted, salt + 8)
-            # the real pairs' missing pixels are saturated tiles: so are these (same input, masked loss)
+            # where the masks hide the targets, the inputs hold the real pairs' own values (their
+            # missing pixels' tiles, partly white): the network sees there what the real pairs show
             tiles = _pairs.missing_tiles(self.real.images[train], size=self.size)
-            views, masks, tiles = _repeat_to(self.n, views, self.masks[train], tiles)
-            return (*self._g2r(views, fitted, salt + 8, saturated=tiles), masks)
+            views, masks, tiles, inputs = _repeat_to(self.n, views, self.masks[train], tiles, self.pairs[0][train])
+            packed, targets = self._g2r(views, fitted, salt + 8, saturated=tiles)
+            return np.where(~masks[:, ::2, ::2, None], inputs, packed), targets, masks
         raise ValueError(f"unknown row {row!r}; expected one of {', '.join(ROWS)}")
 
 
