@@ -42,6 +42,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
+import isp_diagnoses  # noqa: E402
 import downstream_runner as runner  # noqa: E402
 from downstream_nus import CAMERAS, CARLA, NUS, camera_profile, shipped_content_model  # noqa: E402
 
@@ -93,7 +94,8 @@ def run_camera(name: str, args, cg, say):
 
     real = real_sets.load_nus(NUS / f"{name}.npz")
     profile, shipped = profiles(name)
-    dngs = isp_pairs.thumbnail_sources(real.images, real.illuminants, profile, real.files or None)
+    written = isp_diagnoses.fill_missing(real.images) if args.real_fill == "mean" else real.images
+    dngs = isp_pairs.thumbnail_sources(written, real.illuminants, profile, real.files or None)
     masks = None if args.no_masks else isp_pairs.thumbnail_masks(real.images)
     training = IspTraining(steps=args.steps, batch=args.batch, width=args.width, learning_rate=args.learning_rate)
     common = dict(seeds=tuple(range(args.seeds)), folds=3, n=args.n, dngs=dngs, shipped=shipped, training=training,
@@ -221,6 +223,14 @@ def _arguments(argv):
                              "(written white) included: the protocol before the masks")
     parser.add_argument("--content-part", choices=("cast-spread", "brightness"),
                         help="diagnosis: the 'scenes' model's cast spread or brightness alone (content_part)")
+    parser.add_argument("--control-light", choices=("drawn", "own"), default="drawn",
+                        help="diagnosis: the control row's scenes under their own measured lights (isp_diagnoses)")
+    parser.add_argument("--control-exposure", choices=("drawn", "own"), default="drawn",
+                        help="diagnosis: each control pair's level set to its real pair's (isp_diagnoses)")
+    parser.add_argument("--metered-exposure", action="store_true",
+                        help="diagnosis: every g2r_jax pair's level drawn from the real training pairs' (isp_diagnoses)")
+    parser.add_argument("--real-fill", choices=("white", "mean"), default="white",
+                        help="diagnosis: the thumbnails' missing pixels written as the image's mean colour (isp_diagnoses)")
     parser.add_argument("--figures", type=Path, help="a folder: one PNG of predictions per camera")
     args = parser.parse_args(argv)
     args.rows = tuple(args.rows.split(","))
@@ -284,6 +294,10 @@ def main(argv=None) -> int:
     compile_cache.enable(program="g2r_jax-downstream")
     if args.content_part:
         content_part(args.content_part)
+    if (args.control_light, args.control_exposure) != ("drawn", "drawn"):
+        isp_diagnoses.control_variant(args.control_light, args.control_exposure)
+    if args.metered_exposure:
+        isp_diagnoses.metered_exposure()
     cg = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))]
     benchmark = runner.CameraBenchmark(
         run=lambda name: run_camera(name, args, cg, runner.say), entry=camera_entry,

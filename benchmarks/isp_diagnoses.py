@@ -1,0 +1,97 @@
+"""Diagnoses of the neural-ISP benchmark's rows (issue 49 part 3), not product settings: what the
+gap between the control row (real scenes made RAW again, `real_profile_light`) and real training
+is made of, and whether the synthetic pairs' exposure matters. Each is an option of
+`downstream_isp_nus.py`, applied before the run by replacing one method of the task's row
+builder (`task._RowSets`), as `--content-part` does for the content model.
+
+- `--control-light own`: the control's scenes under their own measured lights instead of lights
+  drawn from the fitted model;
+- `--control-exposure own`: each control pair's level (`top_levels`) set to its own real pair's;
+- `--metered-exposure`: every g2r_jax pair's level set to a level drawn at random from the real
+  training pairs' levels (the way a camera's auto-exposure places its files);
+- `--real-fill mean`: the NUS thumbnails' missing pixels (0: masked chart, saturated pixels)
+  written as the image's mean colour instead of white (`fill_missing`), in the real DNGs of both
+  training and test; the masks stay as they were.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def top_levels(packed: np.ndarray, masks=None) -> np.ndarray:
+    """(N,) the 99th percentile of each packed input's brightest channel per tile, over the tiles
+    whose target pixels are measured (`masks` (N, 2h, 2w), None: every tile)."""
+    top = np.asarray(packed).max(-1).reshape(len(packed), -1)
+    if masks is None:
+        return np.quantile(top, 0.99, axis=1)
+    kept = np.asarray(masks)[:, ::2, ::2].reshape(len(packed), -1)
+    return np.array([np.quantile(t[k] if k.any() else t, 0.99) for t, k in zip(top, kept)])
+
+
+def fill_missing(images: np.ndarray) -> np.ndarray:
+    """Thumbnails (N, h, w, 3) with their missing pixels (0 in every channel) set to the mean
+    colour of the image's other pixels."""
+    images = np.array(images, np.float32)
+    for image in images:
+        missing = np.all(image <= 0, axis=-1)
+        if missing.any() and not missing.all():
+            image[missing] = image[~missing].mean(0)
+    return images
+
+
+def _scaled_to(levels, make, views, masks):
+    """The pairs of `make(views)` again with each view scaled so that its pair's level is `levels`."""
+    packed, _ = first = make(views)
+    gains = np.asarray(levels) / np.maximum(top_levels(packed, masks), 1e-4)
+    return make(views * gains[:, None, None, None].astype(np.float32)) if len(gains) else first
+
+
+def control_variant(light: str = "drawn", exposure: str = "drawn") -> None:
+    """The control row with its scenes' own lights and/or its real pairs' own levels (module
+    docstring); 'drawn' for both builds exactly the task's own control."""
+    from g2r_jax.downstream.base import thumbnails, training_sets
+    from g2r_jax.downstream.isp import pairs, task
+    from g2r_jax.pipeline import without_content
+
+    original = task._RowSets.build
+
+    def build(self, row, train, fold, seed):
+        if row != "real_profile_light" or self.masks is None:
+            return original(self, row, train, fold, seed)
+        fitted = without_content(self.fitted(train, fold, seed))
+        views = training_sets.real_to_linear_srgb(self.real.images[train], self.real.illuminants[train], self.profile,
+                                                  size=self.real.images.shape[1])
+        views = np.stack([thumbnails.area_average(v, self.view_size) for v in views])
+        tiles = pairs.missing_tiles(self.real.images[train], size=self.size)
+        levels = top_levels(self.pairs[0][train], self.masks[train])
+        lights = np.asarray(self.real.illuminants[train], np.float32)
+        views, masks, tiles, inputs, levels, lights = task._repeat_to(
+            self.n, views, self.masks[train], tiles, self.pairs[0][train], levels, lights)
+        neutrals = lights if light == "own" else None
+        make = lambda v: pairs.g2r_pairs(v, fitted, 1000 * seed + 10 * fold + 8, neutrals=neutrals, size=self.size,
+                                         saturated=tiles)
+        packed, targets = _scaled_to(levels, make, views, masks) if exposure == "own" else make(views)
+        return np.where(~masks[:, ::2, ::2, None], inputs, packed), targets, masks
+
+    task._RowSets.build = build
+
+
+def metered_exposure() -> None:
+    """Every g2r_jax pair's level drawn from the real training pairs' levels (module docstring)."""
+    from g2r_jax.downstream.isp import task
+
+    original_build, original_g2r = task._RowSets.build, task._RowSets._g2r
+
+    def build(self, row, train, fold, seed):
+        self.training_files = train
+        return original_build(self, row, train, fold, seed)
+
+    def g2r(self, views, profile, salt, model=None, *, as_given=False, saturated=None):
+        train = self.training_files
+        levels = top_levels(self.pairs[0][train], None if self.masks is None else self.masks[train])
+        drawn = np.random.default_rng(salt + 77).choice(levels, len(views))
+        make = lambda v: original_g2r(self, v, profile, salt, model, as_given=as_given, saturated=saturated)
+        return _scaled_to(drawn, make, views, None)
+
+    task._RowSets.build, task._RowSets._g2r = build, g2r
