@@ -185,6 +185,34 @@ def prior_cast_model(colour_model, real_medians: dict | None = None, source: str
     return _cast_model(real_medians, srgb_to_camera_matrices(neutral[None], colour_model)[0], source or "given medians")
 
 
+def scene_cast_targets(real_statistics, to_camera, what: str = "real images", prior_medians: dict | None = None):
+    """Each usable file's own scene for 'scenes': (the 'cast' model of the files, indices of the
+    files with a finite cast and brightness (M,), their casts in linear sRGB (M, 3) re-centred on
+    the cast model's target (NaN where one has no positive luminance at this light), their brightness (M,), the positions among those M of the distinct
+    scenes (`scenes.distinct_scenes`)); None in place of the four arrays when `real_statistics`
+    is not per-file statistics (medians)."""
+    from g2r_jax.content.scenes import distinct_scenes
+
+    cast = _cast_model(real_statistics, to_camera, what, prior_medians)
+    if not isinstance(real_statistics, ContentStatistics):
+        return cast, None, None, None, None
+    values = real_statistics.values
+    usable = np.isfinite(values["cast_red"]) & np.isfinite(values["cast_blue"]) & (values["brightness"] > 0)
+    red, blue, brightness = (np.asarray(values[k], np.float64)[usable] for k in ("cast_red", "cast_blue", "brightness"))
+    distinct = distinct_scenes(red, blue, brightness)
+    if len(distinct) == 0:
+        return cast, np.flatnonzero(usable), np.zeros((0, 3)), brightness, distinct
+    centre = dict(cast.target)
+    red = red - np.median(red[distinct]) + centre["cast_red"]
+    blue = blue - np.median(blue[distinct]) + centre["cast_blue"]
+    in_camera = np.stack([np.exp(red), np.ones(len(red)), np.exp(blue)], -1)
+    to_camera = np.eye(3) if to_camera is None else np.asarray(to_camera, np.float64)
+    targets = np.linalg.solve(to_camera, in_camera.T).T
+    luminance = targets @ _LUMINANCE
+    targets = np.where(luminance[:, None] > 0, np.maximum(targets, 1e-3 * luminance[:, None]), np.nan)
+    return cast, np.flatnonzero(usable), targets, brightness, distinct
+
+
 def scenes_model(real_statistics, to_camera, what: str = "real images", prior_medians: dict | None = None) -> ContentModel:
     """'scenes' (`g2r_jax.content.scenes`): a table of the files' own scenes, each its grey-world
     cast and its brightness, the casts re-centred on the median shrunk toward the prior's
@@ -192,31 +220,19 @@ def scenes_model(real_statistics, to_camera, what: str = "real images", prior_me
     this light is floored at 1e-3 of its luminance), each distinct scene once
     (`scenes.distinct_scenes`); the 'cast' model when fewer than `scenes.MIN_FILES` scenes have a
     finite cast and brightness, or when `real_statistics` is not per-file statistics (medians)."""
-    from g2r_jax.content.scenes import MIN_FILES, distinct_scenes, table_rows
+    from g2r_jax.content.scenes import MIN_FILES, table_rows
 
-    cast = _cast_model(real_statistics, to_camera, what, prior_medians)
-    if not isinstance(real_statistics, ContentStatistics):
-        return cast
-    values = real_statistics.values
-    usable = np.isfinite(values["cast_red"]) & np.isfinite(values["cast_blue"]) & (values["brightness"] > 0)
-    red, blue, brightness = (np.asarray(values[k], np.float64)[usable] for k in ("cast_red", "cast_blue", "brightness"))
-    distinct = distinct_scenes(red, blue, brightness)
-    if len(distinct) < MIN_FILES:
+    cast, _, casts, brightness, distinct = scene_cast_targets(real_statistics, to_camera, what, prior_medians)
+    if casts is None or len(distinct) < MIN_FILES:
         return cast
     centre = dict(cast.target)
-    red, blue, brightness = red[distinct], blue[distinct], brightness[distinct]
-    red = red - np.median(red) + centre["cast_red"]
-    blue = blue - np.median(blue) + centre["cast_blue"]
-    rows = table_rows(len(red))
-    in_camera = np.stack([np.exp(red[rows]), np.ones(len(rows)), np.exp(blue[rows])], -1)
-    to_camera = np.eye(3) if to_camera is None else np.asarray(to_camera, np.float64)
-    targets = np.linalg.solve(to_camera, in_camera.T).T
-    luminance = targets @ _LUMINANCE
-    if not np.all(luminance > 0):
+    casts, brightness = casts[distinct], brightness[distinct]
+    rows = table_rows(len(casts))
+    targets = casts[rows]
+    if not np.all(np.isfinite(targets)):
         raise ValueError("cannot fit the scenes model: a real scene's cast has no positive luminance at this light")
-    targets = np.maximum(targets, 1e-3 * luminance[:, None])
     source = real_statistics.source or what
     return content_model(family="scenes", scene_casts=targets, scene_brightness=np.clip(brightness[rows], 1e-3, 1.0),
                          cast_target=np.asarray(cast.cast_target),
-                         source=f"{source}: each CG frame's cast and brightness those of one of its {len(red)} distinct scenes",
-                         target={**centre, "brightness": float(np.median(brightness)), "scenes": float(len(red))})
+                         source=f"{source}: each CG frame's cast and brightness those of one of its {len(casts)} distinct scenes",
+                         target={**centre, "brightness": float(np.median(brightness)), "scenes": float(len(casts))})
