@@ -229,6 +229,8 @@ def _arguments(argv):
                         help="diagnosis: each control pair's level set to its real pair's (isp_diagnoses)")
     parser.add_argument("--metered-exposure", action="store_true",
                         help="diagnosis: every g2r_jax pair's level drawn from the real training pairs' (isp_diagnoses)")
+    parser.add_argument("--joint-scenes", action="store_true",
+                        help="diagnosis: each 'fitted' view takes one training file's cast and its light (isp_diagnoses)")
     parser.add_argument("--real-fill", choices=("white", "mean"), default="white",
                         help="diagnosis: the thumbnails' missing pixels written as the image's mean colour (isp_diagnoses)")
     parser.add_argument("--figures", type=Path, help="a folder: one PNG of predictions per camera")
@@ -298,6 +300,8 @@ def main(argv=None) -> int:
         isp_diagnoses.control_variant(args.control_light, args.control_exposure)
     if args.metered_exposure:
         isp_diagnoses.metered_exposure()
+    if args.joint_scenes:
+        isp_diagnoses.joint_scenes()
     cg = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))]
     benchmark = runner.CameraBenchmark(
         run=lambda name: run_camera(name, args, cg, runner.say), entry=camera_entry,

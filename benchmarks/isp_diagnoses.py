@@ -9,6 +9,9 @@ builder (`task._RowSets`), as `--content-part` does for the content model.
 - `--control-exposure own`: each control pair's level (`top_levels`) set to its own real pair's;
 - `--metered-exposure`: every g2r_jax pair's level set to a level drawn at random from the real
   training pairs' levels (the way a camera's auto-exposure places its files);
+- `--joint-scenes`: the 'fitted' row's views each take the cast of one training file's scene
+  (`content.fitting.scene_cast_targets`) and that file's own light, drawn together, instead of
+  the files' median cast under lights drawn apart from it;
 - `--real-fill mean`: the NUS thumbnails' missing pixels (0: masked chart, saturated pixels)
   written as the image's mean colour instead of white (`fill_missing`), in the real DNGs of both
   training and test; the masks stay as they were.
@@ -95,3 +98,33 @@ def metered_exposure() -> None:
         return _scaled_to(drawn, make, views, None)
 
     task._RowSets.build, task._RowSets._g2r = build, g2r
+
+
+def joint_scenes() -> None:
+    """The 'fitted' row with each view's cast and light those of one training file (module docstring)."""
+    from g2r_jax import content
+    from g2r_jax.content.fitting import scene_cast_targets
+    from g2r_jax.downstream.base.product import adapted_views
+    from g2r_jax.downstream.isp import pairs, task
+    from g2r_jax.pipeline import without_content
+
+    original = task._RowSets.build
+
+    def build(self, row, train, fold, seed):
+        if row != "fitted":
+            return original(self, row, train, fold, seed)
+        images, lights = self.real.images[train], np.asarray(self.real.illuminants[train], np.float64)
+        statistics = content.statistics(content.white_balanced_camera_rgb(images, lights), source="training folds")
+        neutral = np.median(lights / lights[:, 1:2], axis=0)
+        to_camera = content.srgb_to_camera_matrices(neutral[None], self.profile.colour)[0]
+        _, files, casts, _, _ = scene_cast_targets(statistics, to_camera)
+        usable = np.all(np.isfinite(casts), axis=1)
+        files, casts = files[usable], casts[usable]
+        views, salt = self.views(seed), 1000 * seed + 10 * fold
+        pick = np.random.default_rng(salt + 5).integers(len(files), size=len(views))
+        adapted = np.concatenate([adapted_views(content.content_model(family="cast", cast_target=casts[k]), views[i:i + 1])
+                                  for i, k in enumerate(pick)])
+        fitted = without_content(self.fitted(train, fold, seed))
+        return pairs.g2r_pairs(adapted, fitted, salt + 4, neutrals=lights[files[pick]], size=self.size)
+
+    task._RowSets.build = build

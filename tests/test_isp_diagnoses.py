@@ -55,3 +55,13 @@ def test_levels_and_fill():
     filled = isp_diagnoses.fill_missing(images)
     np.testing.assert_allclose(filled[0, 0, 0], images[0].reshape(-1, 3)[1:].mean(0))
     assert images[0, 0, 0].max() == 0      # the input is not modified
+
+
+def test_joint_scenes_build_the_fitted_rows_pairs(monkeypatch):
+    monkeypatch.setattr(task._RowSets, "build", task._RowSets.build)     # restored after the test
+    isp_diagnoses.joint_scenes()
+    sets = _row_sets()
+    sets.cg = np.random.default_rng(1).uniform(0.05, 1.0, (4, 64, 64, 3)).astype(np.float32)
+    packed, targets = sets.build("fitted", np.arange(6), 0, 0)
+    assert packed.shape == (8, 32, 32, 4) and targets.shape == (8, 64, 64, 3)
+    assert np.all(np.isfinite(packed)) and packed.max() > 0
