@@ -100,11 +100,30 @@ def metered_exposure() -> None:
     task._RowSets.build, task._RowSets._g2r = build, g2r
 
 
-def joint_scenes() -> None:
-    """The 'fitted' row with each view's cast and light those of one training file (module docstring)."""
+def joint_views(sets, train, fold: int, seed: int):
+    """(the views of `sets` (a `task._RowSets`) for `seed`, each through the 'cast' model of one
+    training file's scene, that file's light (n, 3), the files' casts (M, 3), the file drawn for each view (n,))."""
     from g2r_jax import content
     from g2r_jax.content.fitting import scene_cast_targets
+    from g2r_jax.content.model import CAST_KEPT
     from g2r_jax.downstream.base.product import adapted_views
+
+    images, lights = sets.real.images[train], np.asarray(sets.real.illuminants[train], np.float64)
+    statistics = content.statistics(content.white_balanced_camera_rgb(images, lights), source="training folds")
+    neutral = np.median(lights / lights[:, 1:2], axis=0)
+    to_camera = content.srgb_to_camera_matrices(neutral[None], sets.profile.colour)[0]
+    _, files, casts, _, _ = scene_cast_targets(statistics, to_camera)
+    usable = np.all(np.isfinite(casts), axis=1)
+    files, casts = files[usable], casts[usable]
+    views = sets.views(seed)
+    pick = np.random.default_rng(1000 * seed + 10 * fold + 5).integers(len(files), size=len(views))
+    adapted = np.concatenate([adapted_views(content.content_model(family="cast", cast_target=casts[k], cast_scale=CAST_KEPT),
+                                            views[i:i + 1]) for i, k in enumerate(pick)])
+    return adapted, lights[files[pick]], casts, pick
+
+
+def joint_scenes() -> None:
+    """The 'fitted' row with each view's cast and light those of one training file (module docstring)."""
     from g2r_jax.downstream.isp import pairs, task
     from g2r_jax.pipeline import without_content
 
@@ -113,18 +132,8 @@ def joint_scenes() -> None:
     def build(self, row, train, fold, seed):
         if row != "fitted":
             return original(self, row, train, fold, seed)
-        images, lights = self.real.images[train], np.asarray(self.real.illuminants[train], np.float64)
-        statistics = content.statistics(content.white_balanced_camera_rgb(images, lights), source="training folds")
-        neutral = np.median(lights / lights[:, 1:2], axis=0)
-        to_camera = content.srgb_to_camera_matrices(neutral[None], self.profile.colour)[0]
-        _, files, casts, _, _ = scene_cast_targets(statistics, to_camera)
-        usable = np.all(np.isfinite(casts), axis=1)
-        files, casts = files[usable], casts[usable]
-        views, salt = self.views(seed), 1000 * seed + 10 * fold
-        pick = np.random.default_rng(salt + 5).integers(len(files), size=len(views))
-        adapted = np.concatenate([adapted_views(content.content_model(family="cast", cast_target=casts[k]), views[i:i + 1])
-                                  for i, k in enumerate(pick)])
+        adapted, lights, _, _ = joint_views(self, train, fold, seed)
         fitted = without_content(self.fitted(train, fold, seed))
-        return pairs.g2r_pairs(adapted, fitted, salt + 4, neutrals=lights[files[pick]], size=self.size)
+        return pairs.g2r_pairs(adapted, fitted, 1000 * seed + 10 * fold + 4, neutrals=lights, size=self.size)
 
     task._RowSets.build = build

@@ -65,3 +65,13 @@ def test_joint_scenes_build_the_fitted_rows_pairs(monkeypatch):
     packed, targets = sets.build("fitted", np.arange(6), 0, 0)
     assert packed.shape == (8, 32, 32, 4) and targets.shape == (8, 64, 64, 3)
     assert np.all(np.isfinite(packed)) and packed.max() > 0
+
+
+def test_joint_views_take_the_drawn_files_cast():
+    sets = _row_sets()
+    sets.cg = np.random.default_rng(1).uniform(0.05, 1.0, (4, 64, 64, 3)).astype(np.float32)
+    adapted, lights, casts, pick = isp_diagnoses.joint_views(sets, np.arange(6), 0, 0)
+    means = adapted.reshape(len(adapted), -1, 3).mean(1)
+    chroma = lambda c: np.log(c[:, [0, 2]] / c[:, 1:2])
+    np.testing.assert_allclose(chroma(means), chroma(casts[pick]), atol=0.05)
+    assert np.array_equal(lights, np.asarray(sets.real.illuminants, np.float64)[pick])
