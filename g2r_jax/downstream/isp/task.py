@@ -70,8 +70,8 @@ ROWS = {
     "real_pretrained": "real training files, pretrained on g2r_jax (fitted)",
     "real_profile_light": "control: real, lights from the model",
 }
-OPTIONAL_ROWS = ("shipped", "real_plus_fitted", "real_pretrained")
-PRETRAINED_ON = {"real_pretrained": ("fitted", "real")}   # row: (the row it starts from, the row it fine-tunes on)   # 'shipped' when the caller gives a profile
+OPTIONAL_ROWS = ("shipped", "real_plus_fitted", "real_pretrained")   # 'shipped' when the caller gives a profile
+PRETRAINED_ON = {"real_pretrained": ("fitted", "real")}   # row: (the row it starts from, the row it fine-tunes on)
 DEFAULT_ROWS = tuple(r for r in ROWS if r not in OPTIONAL_ROWS)
 METRICS = {"psnr": "PSNR (dB)", "ssim": "SSIM", "delta_e": "ΔE2000"}
 HIGHER_IS_BETTER = {"psnr": True, "ssim": True, "delta_e": False}
