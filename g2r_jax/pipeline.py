@@ -148,12 +148,15 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
     linear = decode(image, curve)
     grid = lambda: decode(_content.mean_grid(image), curve)
     scene = adapted_scene(linear, profile, content, grid, conditions.get("content_draw")) if return_scene else None
-    linear, conditions = content_stage(linear, conditions, profile, content, colour, grid=grid)
+    highlight_safe = resolve_highlight_safe(highlight_safe, recipe)
+    linear, conditions = content_stage(linear, conditions, profile, content, colour, grid=grid,
+                                       highlight_safe=highlight_safe)
 
     # 5. Un-white-balance and mosaic in one step, scaled so that white reaches 1 in the
     #    strongest channel, then a global exposure gain.
-    mosaic = colour_stage(colour)[1](linear, conditions, profile.cfa_pattern,
-                                     resolve_highlight_safe(highlight_safe, recipe))
+    mosaic = colour_stage(colour)[1](linear, conditions, profile.cfa_pattern, highlight_safe)
+    if "content_tone" in conditions:
+        mosaic = mosaic * _content.pixel_factor(linear, conditions["content_tone"])
     mosaic = mosaic * conditions["exposure_gain"]
 
     # 6. Optics: shading and channel gains (and the renderer's lens-shading gain taken out).
@@ -214,7 +217,8 @@ def _content_matrix(model, linear, grid):
     return _content.as_matrix(model, grid() if grid is not None and model.family == "cast" else linear)
 
 
-def content_stage(linear, conditions, profile, content: bool | None, colour: str = "matrix", grid=None):
+def content_stage(linear, conditions, profile, content: bool | None, colour: str = "matrix", grid=None,
+                  highlight_safe: bool = False):
     """Step 1b: the profile's content model (`g2r_jax.content`) on the scene-linear image, when
     `content` is True, or None and the profile's model says `apply_by_default`; a profile without
     one (every profile before issue 32) is left exactly as it was.
@@ -222,12 +226,21 @@ def content_stage(linear, conditions, profile, content: bool | None, colour: str
     **Returns:** (linear, conditions). A linear model (`content.as_matrix`) before a colour stage
     that is a matrix on linear sRGB is folded into that matrix (M A: the same result to float
     rounding, no pass over the pixels; the 'cast' family's gains come from `grid()`, when given:
-    the image's `content.mean_grid` decoded on its own); otherwise the model transforms the pixels."""
+    the image's `content.mean_grid` decoded on its own). The 'scenes' family before such a stage
+    (without `highlight_safe`, whose easing is not linear) is split (`content.scenes_split`): its
+    gains go into the matrix and its factor per pixel into `conditions["content_tone"]`, which the
+    mosaic takes (`render_mosaic`). Otherwise the model transforms the pixels."""
     model = _active_content(profile, content)
     if model is None:
         return linear, conditions
+    foldable = colour in MATRIX_ON_LINEAR
+    if model.family == "scenes" and foldable and not highlight_safe and conditions.get("content_draw") is not None:
+        matrix, tone = _content.scenes_split(model, conditions["content_draw"],
+                                             _content.mean_grid(linear) if grid is None else grid())
+        return linear, {**conditions, "srgb_to_wb_camera": conditions["srgb_to_wb_camera"] @ matrix,
+                        "content_tone": tone}
     matrix = _content_matrix(model, linear, grid)
-    if matrix is None or colour not in MATRIX_ON_LINEAR:
+    if matrix is None or not foldable:
         return _content_pixels(model, linear, grid, conditions.get("content_draw")), conditions
     return linear, {**conditions, "srgb_to_wb_camera": conditions["srgb_to_wb_camera"] @ matrix}
 

@@ -158,3 +158,42 @@ def test_as_cast_is_the_cast_model_of_the_same_files_and_convert_offers_it(tmp_p
                     "--content-cast-only", "--seed", "0"]) == 0
     said = capsys.readouterr()
     assert "content model: cast" in said.out + said.err
+
+
+@pytest.mark.parametrize("colour, recipe", [("matrix", "dng"), ("spectral", "dng"), ("matrix", "published")])
+def test_the_split_scenes_model_gives_the_mosaic_of_the_transformed_pixels(colour, recipe):
+    """The 'scenes' model split for a linear colour stage (its gains in the matrix, its factor per
+    pixel on the mosaic: `content.scenes_split`) gives the mosaic of the image transformed first;
+    the published recipe's highlight easing is not linear and takes the transform on the pixels."""
+    from g2r_jax.profile.editing import attach_spectral
+
+    plain = without_content(g2r_jax.load_profile("Canon600D"))
+    if colour != "matrix":
+        plain = attach_spectral(plain)
+    profile = replace(plain, content=content.with_default(_model(), True))
+    linear = _frames(1)[0]
+    options = dict(transfer="linear", noise=False, quantize=False, colour=colour, recipe=recipe)
+    for index in range(3):
+        key = jax.random.PRNGKey(index)
+        mosaic, scene, _ = g2r_jax.unprocess(key, linear, profile, return_scene=True, **options)
+        # the published recipe decodes its input with gamma 2.2 whatever the transfer
+        again = np.asarray(scene) ** (1 / 2.2) if recipe == "published" else np.asarray(scene)
+        transformed_first, _ = g2r_jax.unprocess(key, again, plain, **options)
+        untouched, _ = g2r_jax.unprocess(key, linear, plain, **options)
+        assert np.allclose(mosaic, transformed_first, rtol=1e-5, atol=1e-3)
+        assert not np.allclose(mosaic, untouched, rtol=1e-3)
+
+
+def test_the_split_is_a_factor_per_pixel_times_a_diagonal():
+    model = _model()
+    linear = _frames(1)[0]
+    grid = content.mean_grid(linear)
+    spreads = []
+    for draw in (0.1, 0.3, 0.5, 0.7, 0.9):
+        matrix, tone = content.scenes_split(model, draw, grid)
+        assert np.count_nonzero(np.asarray(matrix) - np.diag(np.diag(np.asarray(matrix)))) == 0
+        factor = np.asarray(content.pixel_factor(linear, tone))
+        split = factor[..., None] * (linear @ np.asarray(matrix).T)
+        assert np.allclose(split, np.asarray(content.apply(model, linear, draw, grid)), rtol=1e-6, atol=1e-7)
+        spreads.append(np.ptp(factor))
+    assert max(spreads) > 0.01    # the tone acts on some of these draws

@@ -167,6 +167,25 @@ def as_matrix(model: ContentModel, linear=None) -> Float[Array, "3 3"] | None:
     return s * jnp.eye(3, dtype=jnp.float32) + (1.0 - s) * jnp.ones((3, 1), jnp.float32) * weights[None, :]
 
 
+def scenes_split(model: ContentModel, draw, grid):
+    """A 'scenes' model on one image as x' = f(x) A x: A (3, 3) the diagonal of the cast's gains
+    and `tone`, the (peak, power) of the scalar f per pixel (`pixel_factor`), both found on the
+    image's `mean_grid` (`scenes.scene_parameters`). A colour stage that is a matrix M on linear
+    sRGB takes M A, and its mosaic the factor f of the image's pixels: `apply`'s result to float
+    rounding, with no pass over the (H, W, 3) image."""
+    from g2r_jax.content.scenes import scene_parameters
+
+    peak, power, gains = scene_parameters(model, draw, jnp.asarray(grid, jnp.float32), _gains_toward)
+    return jnp.diag(gains.reshape(3)), (peak, power)
+
+
+def pixel_factor(linear, tone):
+    """The scalar f (H, W) per pixel of `scenes_split`'s split for the image `linear` (H, W, 3)."""
+    from g2r_jax.content.scenes import tone_factor
+
+    return tone_factor(linear, *tone)
+
+
 def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"], draw=None,
           grid=None) -> Float[Array, "*batch H W 3"]:
     """The content transform of one image (H, W, 3) or a batch (..., H, W, 3) in linear sRGB

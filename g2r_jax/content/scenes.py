@@ -22,8 +22,12 @@ u in [0, 1), k = floor(u K):
    grey-world cast is then the scene's exactly (q is found with these gains applied, so that the
    brightness is the scene's too).
 
-Both parameters come from the grid, the pixels then take one power and one gain each (the
-pipeline fuses them into its element-wise pass). Fitted from DNGs alone (`fitting.scenes_model`):
+Both parameters come from the grid; each pixel then takes one scalar factor (a function of its
+luminance) and each channel one gain, so a linear colour stage takes the gains into its matrix and
+the factor onto its mosaic (`model.scenes_split`, `pipeline.content_stage`): multiplying the
+(H, W, 3) image instead kept XLA from fusing the decode with the mosaic (`unprocess` of a
+1000 x 1500 frame 3.4 times slower than without the model; docs/pages/validation/content_model.md,
+"Cost of applying it"). Fitted from DNGs alone (`fitting.scenes_model`):
 the table holds the files' own (cast, brightness) pairs, their casts re-centred on the median
 shrunk to the prior's (as 'cast' is), each distinct scene once (`distinct_scenes`: a burst's
 frames are one scene). From one scene on it trains the estimators better than 'cast' does from the
@@ -72,12 +76,17 @@ def _luminance(x):
     return luminance(x)[..., 0]
 
 
-def _toned(image, peak, power):
-    """x (Y / C)^(q - 1) above the knee C = `KNEE` P, x below it, for images (..., H, W, 3), peaks
-    P and powers q shaped (..., 1, 1, 1)."""
+def tone_factor(image, peak, power):
+    """(Y / C)^(q - 1) above the knee C = `KNEE` P, 1 below it: the scalar each pixel of images
+    (..., H, W, 3) is multiplied by, for peaks P and powers q shaped (..., 1, 1, 1); (..., H, W)."""
     above = jnp.maximum(_luminance(image) / (KNEE * peak[..., 0]), 1.0)
     # one factor per pixel, exp and log rather than a power per channel: a third of the cost
-    return image * jnp.exp((power[..., 0] - 1.0) * jnp.log(above))[..., None]
+    return jnp.exp((power[..., 0] - 1.0) * jnp.log(above))
+
+
+def _toned(image, peak, power):
+    """x (Y / C)^(q - 1) above the knee, x below it (`tone_factor`)."""
+    return image * tone_factor(image, peak, power)[..., None]
 
 
 def _peak_luminance(grid):
@@ -85,23 +94,27 @@ def _peak_luminance(grid):
     return jnp.where(peak > 0, peak, 1.0)[..., None, None, None]
 
 
-def _brightness(grid):
-    """Mean Y over the largest channel value of grids (..., h, w, 3) -> (...,)."""
-    top = jnp.max(grid, axis=(-3, -2, -1))
-    return jnp.mean(_luminance(grid), axis=(-2, -1)) / jnp.where(top > 0, top, 1.0)
-
-
-def tone_power(grid, brightness, finish=lambda toned: toned):
-    """The power q (...,) that takes the brightness of `finish(toned grid)` to `brightness` (...,),
-    by bisection in log q over `POWER_RANGE` (an end when out of reach)."""
+def tone_power(grid, brightness, target):
+    """The power q (...,) that takes the brightness of the toned grid (..., h, w, 3), its cast
+    then taken to `target` (..., 3) by the 'cast' gains, to `brightness` (...,): by bisection in
+    log q over `POWER_RANGE` (an end when out of reach). With the gains g_c = Y_m t_c / m_c the
+    mean luminance is Y_m (t has luminance 1), so the brightness is 1 / max_c (t_c M_c / m_c), M_c
+    and m_c the toned grid's largest and mean value in channel c: no gains applied per step."""
     peak = _peak_luminance(grid)
     low = jnp.full(jnp.shape(brightness), np.log(POWER_RANGE[0]), jnp.float32)
     high = jnp.full(jnp.shape(brightness), np.log(POWER_RANGE[1]), jnp.float32)
+    # the log of each grid pixel's luminance over the knee, taken once: each step then takes one exp
+    log_above = jnp.log(jnp.maximum(_luminance(grid) / (KNEE * peak[..., 0]), 1.0))
+    target = jnp.asarray(target, jnp.float32)
 
     def step(_, bounds):
         low, high = bounds
         middle = 0.5 * (low + high)
-        reached = _brightness(finish(_toned(grid, peak, jnp.exp(middle)[..., None, None, None])))
+        toned = grid * jnp.exp((jnp.exp(middle)[..., None, None] - 1.0) * log_above)[..., None]
+        mean = jnp.mean(toned, axis=(-3, -2))
+        top = jnp.max(toned, axis=(-3, -2))
+        ratio = jnp.max(target * top / jnp.where(mean > 0, mean, 1.0), axis=-1)
+        reached = 1.0 / jnp.where(ratio > 0, ratio, 1.0)
         too_bright = reached > brightness
         return jnp.where(too_bright, middle, low), jnp.where(too_bright, high, middle)
 
@@ -115,16 +128,24 @@ def drawn_row(model, draw):
     return jnp.clip(jnp.floor(jnp.asarray(draw, jnp.float32) * size).astype(jnp.int32), 0, size - 1)
 
 
-def apply_scenes(model, x, draw, grid, cast_gains):
-    """The 'scenes' transform of images x (..., H, W, 3) with draws (...,) and their mean grids
-    (`grid`, the same images' `model.mean_grid`); `cast_gains(grid, target)` gives the 'cast'
-    family's gains (..., 1, 1, 3) toward targets (..., 3). The power first, then the gains, so
-    that each frame's grey-world cast is its scene's exactly; the power is found with the gains
-    applied, so that its brightness is the scene's too."""
+def scene_parameters(model, draw, grid, cast_gains):
+    """(peak, power, gains) of the 'scenes' transform of images with draws (...,) and their mean
+    grids (..., h, w, 3) (`model.mean_grid`): the frame's peak luminance and power q, shaped
+    (..., 1, 1, 1), and the cast's gains (..., 1, 1, 3); `cast_gains(grid, target)` gives the
+    'cast' family's gains toward targets (..., 3). The power is found with the gains applied, so
+    that the toned frame's brightness is the scene's; the gains on the toned grid, so that its
+    grey-world cast is the scene's exactly."""
     row = drawn_row(model, draw)
     target = jnp.asarray(model.scene_casts, jnp.float32)[row]
-    power = tone_power(grid, jnp.asarray(model.scene_brightness, jnp.float32)[row],
-                       lambda toned: toned * cast_gains(toned, target))[..., None, None, None]
+    power = tone_power(grid, jnp.asarray(model.scene_brightness, jnp.float32)[row], target)[..., None, None, None]
     peak = _peak_luminance(grid)
-    gains = cast_gains(_toned(grid, peak, power), target)
+    return peak, power, cast_gains(_toned(grid, peak, power), target)
+
+
+def apply_scenes(model, x, draw, grid, cast_gains):
+    """The 'scenes' transform of images x (..., H, W, 3) (`scene_parameters`): the power first,
+    then the gains. The transform is a scalar per pixel (`tone_factor`, a function of the pixel's
+    luminance) times a diagonal matrix per image, so a linear colour stage may take the gains into
+    its matrix and the factor onto its mosaic (`pipeline.content_stage`)."""
+    peak, power, gains = scene_parameters(model, draw, grid, cast_gains)
     return _toned(x, peak, power) * gains
