@@ -19,6 +19,11 @@ Issue 47's variants: `scenes` (the family, fitted per fold like `cast`); the pro
 from, `draw` (each view's cast that of one inner file drawn at random), `cast+tone` (the median
 cast and the median brightness, a luminance power) and `draw+tone` (one file's cast and brightness).
 
+Issue 50's variants, the content of a profile without files: `prior-cast` (the shipped profile's before
+issue 50's finding: the prior's median cast with the camera under test left out) and `prior-scenes` (`content.prior_scenes_model`:
+a 'scenes' table drawn from the spread of the other eight cameras' scenes about their medians,
+centred on the prior's medians without the camera).
+
 Data: ../shared/data/estimation/nus/<camera>.npz and ../shared/data/cg/carla/*.png.
 """
 
@@ -137,6 +142,19 @@ def drawn_views(name, views, images, lights, profile, rng):
     return np.maximum(out, 0.0).astype(np.float32)
 
 
+def prior_scenes_model(camera, profile, seed: int):
+    """The `prior-scenes` variant: `content.prior_scenes_model` (what a shipped profile carries)
+    with the camera under test left out of the prior's medians and covariance; no file of the
+    camera is read."""
+    from downstream_nus import DATA
+
+    from g2r_jax import content
+    from g2r_jax.content import prior
+
+    return content.prior_scenes_model(profile.colour, prior.real_scenes_without(DATA, camera),
+                                      prior.scene_covariance(DATA, camera), f"prior without {camera}", seed)
+
+
 def run(cameras, variants, estimators, seed: int, n: int, files: int | None = None) -> dict:
     """{estimator/variant: {camera: [mean inner-third error per fold, degrees]}}; `files`: the fitted
     families ('cast', 'scenes') see only that many of the inner two thirds' files, drawn at random
@@ -151,7 +169,8 @@ def run(cameras, variants, estimators, seed: int, n: int, files: int | None = No
     linear = training_sets.linear_images([np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))])
     views = training_sets.cg_views(linear, n, seed)
     adapted = {name: variant_views(name, views) for name in variants
-               if name not in ("cast", "scenes") and not name.startswith(("draw", "cast+tone", "cast+top"))}
+               if name not in ("cast", "scenes", "prior-cast", "prior-scenes")
+               and not name.startswith(("draw", "cast+tone", "cast+top"))}
     errors, start = {}, time.perf_counter()
     for camera in cameras:
         real = real_sets.load_nus(NUS / f"{camera}.npz")
@@ -167,6 +186,17 @@ def run(cameras, variants, estimators, seed: int, n: int, files: int | None = No
                 model = product.candidate_model(fitted_family, real.images[scenes_of], real.illuminants[scenes_of],
                                                 views, profile)
                 adapted[fitted_family] = product.adapted_views(model, views, 50_000 + 100 * seed + fold)
+            if "prior-cast" in variants:
+                from downstream_nus import shipped_content_model
+
+                from g2r_jax.content import as_cast
+
+                adapted["prior-cast"] = product.adapted_views(as_cast(shipped_content_model(camera, profile.colour)),
+                                                              views, 50_000 + 100 * seed + fold)
+            if "prior-scenes" in variants:
+                adapted["prior-scenes"] = product.adapted_views(
+                    prior_scenes_model(camera, profile, 70_000 + 100 * seed + fold),
+                    views, 50_000 + 100 * seed + fold)
             for name in variants:
                 if name.startswith("draw") or name.startswith(("cast+tone", "cast+top")):
                     adapted[name] = drawn_views(name, views, real.images[inner], real.illuminants[inner], profile,

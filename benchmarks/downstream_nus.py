@@ -70,11 +70,13 @@ def camera_profile(name: str):
 
 def shipped_content_model(name: str, colour_model):
     """The content model a shipped profile of NUS camera `name` carries (profiles/build_shipped_profiles.py):
-    the prior's 'cast' target with the camera's own scenes left out, through its colour matrices."""
-    from g2r_jax.content import prior_cast_model
-    from g2r_jax.content.prior import real_scenes_without
+    the prior's 'scenes' table with the camera's own scenes left out of its medians and spread,
+    through the camera's colour matrices."""
+    from g2r_jax.content import prior_scenes_model
+    from g2r_jax.content.prior import real_scenes_without, scene_covariance
 
-    return prior_cast_model(colour_model, real_scenes_without(DATA, name), "prior without " + name)
+    return prior_scenes_model(colour_model, real_scenes_without(DATA, name), scene_covariance(DATA, name),
+                              "prior without " + name)
 
 
 def other_camera(name: str, cameras) -> str:

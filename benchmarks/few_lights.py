@@ -17,10 +17,10 @@ with the camera's; from 10 the kernel with the cross-camera prior, which holds n
 there `auto-gs` is `auto` and trains once). Each count below all is
 drawn `--draws` times per fold (a different random subset of the fold's training files each).
 Content: `cg` (the CARLA frames, the paper's setting), `cg-cast` (the same through the `cast`
-content model a shipped profile carries, each frame's cast taken to the NUS prior's with the camera
-under test left out, through its matrices: issue 32, for UPI too; so `shipped` on `cg-cast` is the
-profile as shipped), `cg-scenes` (the content model a user gets today: with 0 files the shipped
-profile's, as `cg-cast`; from 1 file the `scenes` model `g2r-fit-profile` fits, fitted to the same
+content model, each frame's cast taken to the NUS prior's with the camera under test left out,
+through its matrices: issue 32, for UPI too; the median cast of the shipped profile's model),
+`cg-scenes` (the content model a user gets today: with 0 files the shipped profile's, the prior's
+'scenes' table with the camera under test left out; from 1 file the `scenes` model `g2r-fit-profile` fits, fitted to the same
 training files whose lights the row uses, each file white-balanced by its light as by its
 AsShotNeutral, the prior of real scenes it shrinks toward with the camera under test left out as
 in `cg-cast`; UPI at 0 on the same views) or `real` (the training
@@ -119,7 +119,7 @@ def scenes_content(camera, profile, images, lights, views):
     'scenes' family, the files white-balanced by their lights as by their AsShotNeutral), its cast
     centre shrunk toward the prior of real scenes without `camera` (`content.prior.real_scenes_without`,
     as the shipped profiles' prior leaves their camera out); with no file, the content model a
-    shipped profile carries (`shipped_content_model`, as `cg-cast`)."""
+    shipped profile carries (`shipped_content_model`: the prior's scenes)."""
     from g2r_jax.content import prior as content_prior
     from g2r_jax.downstream.base.product import FITTED, candidate_model
 
@@ -142,15 +142,10 @@ def _done(out: Path) -> set:
 
 def scenes_views(camera, profile, images, lights, views, cg_views, salt):
     """The CG `views` through `scenes_content` of the files `images` with `lights` (the scenes
-    drawn per view from `salt`); with no file the `cg-cast` views (the shipped profile's model),
-    applied as `cg-cast` applies it."""
-    from g2r_jax import content as content_model
+    drawn per view from `salt`); with no file the shipped profile's model (the prior's scenes)."""
     from g2r_jax.downstream.base.product import adapted_views
 
-    model = scenes_content(camera, profile, images, lights, views)
-    if len(images) == 0:
-        return cg_views["cg-cast"] if "cg-cast" in cg_views else np.asarray(content_model.apply(model, views))
-    return adapted_views(model, views, salt)
+    return adapted_views(scenes_content(camera, profile, images, lights, views), views, salt)
 
 
 def run_camera(camera, args, out, say):
@@ -172,7 +167,8 @@ def run_camera(camera, args, out, say):
         if "cg-cast" in args.content:    # the CARLA views through the content model a shipped profile carries
             from g2r_jax import content as content_model
 
-            cg_views["cg-cast"] = np.asarray(content_model.apply(shipped_content_model(camera, profile.colour), views))
+            shipped_cast = content_model.as_cast(shipped_content_model(camera, profile.colour))   # the prior's cast
+            cg_views["cg-cast"] = np.asarray(content_model.apply(shipped_cast, views))
         for fold, test in enumerate(folds):
             train = np.setdiff1d(np.arange(len(real.images)), test)
             trained, relit = {}, []

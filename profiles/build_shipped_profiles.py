@@ -256,22 +256,34 @@ def gehler_shi_5d_chromaticities() -> np.ndarray:
 
 # ------------------------------------------------------------------------------ profiles
 
-def with_prior_content(profile, nus_camera: str | None = None):
-    """(profile with the prior's 'cast' content model applied by default, its provenance): the CG
-    frames' grey-world cast taken to the real scenes' median (`content.prior_cast_model`), what
-    `g2r-fit-profile` fits from a folder of DNGs, so that a shipped profile converts CG frames as a
-    fitted one does (docs/pages/validation/content_model.md, finding 3; illuminant_models.md, fifth
-    round). A NUS camera's own scenes are left out of the prior (`prior.real_scenes_without`)."""
-    from g2r_jax.content import describe, prior_cast_model, with_default
-    from g2r_jax.content.prior import real_scenes_without
+def with_prior_content(profile, nus_camera: str | None = None, scenes_spread: bool = True):
+    """(profile with the prior's content model applied by default, its provenance): a 'scenes'
+    table drawn from the prior of real scenes (`content.prior_scenes_model`: each CG frame's cast
+    and brightness those of one scene drawn from how real scenes spread about their medians), or
+    with `scenes_spread` False the prior's median cast alone (`content.prior_cast_model`: the night
+    profile, whose scenes' brightness the day scenes' spread does not describe), so that a shipped
+    profile converts CG frames as a fitted one does (docs/pages/validation/content_model.md,
+    findings 3 and 5). A NUS camera's own scenes are left out of the prior (`prior.real_scenes_without`,
+    `prior.scene_covariance`)."""
+    from g2r_jax.content import describe, prior_cast_model, prior_scenes_model, with_default
+    from g2r_jax.content.prior import real_scenes_without, scene_covariance
 
     medians = real_scenes_without(DATA, nus_camera) if nus_camera else None
     scenes = (f"the other eight NUS cameras' scenes ({nus_camera}'s own left out)" if nus_camera
               else "the nine NUS cameras' scenes")
-    model = with_default(prior_cast_model(profile.colour, medians, f"prior: NUS 8-camera set, {scenes}"), True)
+    source = f"prior: NUS 8-camera set, {scenes}"
+    if scenes_spread:
+        covariance = scene_covariance(DATA, nus_camera) if nus_camera else None
+        model = with_default(prior_scenes_model(profile.colour, medians, covariance, source), True)
+        target = (f"{len(np.asarray(model.scene_brightness))} scenes drawn (seed 0) from a Gaussian of (cast red, cast "
+                  f"blue, log brightness) about the median of the per-camera medians of {scenes}, with the "
+                  f"covariance of one camera's files about its own medians")
+    else:
+        model = with_default(prior_cast_model(profile.colour, medians, source), True)
+        target = (f"the median grey-world cast of real white-balanced scenes, the median of the per-camera "
+                  f"medians of {scenes}")
     return replace(profile, content=model), (
-        f"{describe(model)}; applied by default (g2r-convert --no-content-model turns it off). Target: the median "
-        f"grey-world cast of real white-balanced scenes, the median of the per-camera medians of {scenes} "
+        f"{describe(model)}; applied by default (g2r-convert --no-content-model turns it off). Target: {target} "
         f"(../shared/data/estimation/nus, g2r_jax.content.prior), carried to linear sRGB through this camera's "
         f"colour matrices at D65.")
 
@@ -313,7 +325,7 @@ def s20fe_night(cameras: dict) -> None:
     noise = read_noise_table(DATA / "noise" / "s20fe_heteroscedastic_gaussian.csv", info.black_level, info.white_level)
     profile = fit_profile([info], name="s20fe_night", illuminant_model=S20_CHOICE, noise=noise,
                           chromaticities=neutral_to_chromaticity(rows))
-    profile, content = with_prior_content(profile)
+    profile, content = with_prior_content(profile, scenes_spread=False)
     profile = with_provenance(
         profile,
         colour=f"its D65 ColorMatrix only (one calibration illuminant), from the Graphics2RAW release. The only "

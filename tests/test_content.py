@@ -236,6 +236,7 @@ def test_prior_numbers_are_those_of_the_data(shared_data):
     for key in ("chroma_spread", "brightness", "cast_red", "cast_blue"):
         assert prior.REAL_SCENES["medians"][key] == pytest.approx(real[key], rel=1e-3)
         assert prior.REFERENCE_CG["medians"][key] == pytest.approx(cg[key], rel=1e-3)
+    np.testing.assert_allclose(prior.SCENE_SPREAD["covariance"], prior.scene_covariance(shared_data), atol=1e-5)
 
 
 def test_leaving_a_camera_out_of_the_prior_names_a_camera_it_does_not_know(tmp_path):
@@ -255,3 +256,38 @@ def test_a_camera_left_out_of_the_prior_moves_its_cast_target_little(shared_data
             assert shift <= 2 * prior.CAST_SPREAD[key]["between_cameras"], (camera, key, shift)
             moved.append(shift)
     assert max(moved) > 1e-4
+
+
+def test_the_prior_scenes_model_spreads_about_the_prior_and_keeps_its_cast():
+    """A profile without files gets a table of scenes drawn from the prior (`prior_scenes_model`):
+    its medians are the prior's, so its median cast is the cast model's; its casts and
+    brightness spread as one camera's scenes do; a given seed gives the same table."""
+    import g2r_jax
+    from g2r_jax.content.scene_statistics import LUMINANCE
+
+    colour = g2r_jax.load_profile("Canon600D").colour
+    model = content.prior_scenes_model(colour)
+    assert model.family == "scenes" and len(np.asarray(model.scene_brightness)) == 64
+    np.testing.assert_allclose(np.asarray(content.as_cast(model).cast_target),
+                               np.asarray(content.prior_cast_model(colour).cast_target), atol=1e-6)
+    brightness = np.asarray(model.scene_brightness)
+    assert np.median(brightness) == pytest.approx(prior.REAL_SCENES["medians"]["brightness"], rel=0.05)
+    spread = np.std(np.log(brightness))
+    assert 0.5 < spread / np.sqrt(prior.SCENE_SPREAD["covariance"][2][2]) < 1.5
+    casts = np.asarray(model.scene_casts)
+    np.testing.assert_allclose(casts @ LUMINANCE, 1.0, atol=1e-5)
+    assert np.std(np.log(casts[:, 2] / casts[:, 1])) > 0.05
+    again = content.prior_scenes_model(colour)
+    assert np.array_equal(np.asarray(again.scene_casts), casts)
+    other = content.prior_scenes_model(colour, seed=1)
+    assert not np.array_equal(np.asarray(other.scene_casts), casts)
+
+
+@pytest.mark.data
+def test_a_camera_left_out_of_the_scene_spread_changes_it_little(shared_data):
+    with pytest.raises(ValueError, match="not a NUS camera"):
+        prior.scene_covariance(shared_data, "GoProHero6")
+    left_out = prior.scene_covariance(shared_data, "SonyA57")
+    shipped = np.asarray(prior.SCENE_SPREAD["covariance"])
+    assert not np.allclose(left_out, shipped, atol=1e-6)
+    np.testing.assert_allclose(np.sqrt(np.diag(left_out)), np.sqrt(np.diag(shipped)), rtol=0.2)

@@ -160,7 +160,7 @@ def test_a_shipped_profile_applies_its_content_model_by_default(tmp_path):
         ["--no-content-model"], "off")
     assert default == forced != off
     manifest = json.loads((tmp_path / "default" / "manifest.jsonl").read_text().splitlines()[0])
-    assert manifest["content_model"].startswith("cast, ")
+    assert manifest["content_model"].startswith("scenes, ")
 
 
 def test_convert_content_model_on_a_profile_without_one_uses_the_prior_and_says_so(tmp_path, capsys):
@@ -174,8 +174,8 @@ def test_convert_content_model_on_a_profile_without_one_uses_the_prior_and_says_
     assert convert.main(["--example", "--profile", str(tmp_path / "plain.json"), "-o", str(tmp_path / "cast"),
                          "--content-model"]) == 0
     err = capsys.readouterr().err
-    assert "no content model: using the prior of real scenes'" in err and "content model: cast" in err
+    assert "no content model: using the prior of real scenes'" in err and "content model: scenes" in err
     name = "colour_checker_scene.dng"
     assert (tmp_path / "plain" / name).read_bytes() != (tmp_path / "cast" / name).read_bytes()
-    model = content.prior_cast_model(profile.colour)
-    assert model.family == "cast" and "NUS" in model.source
+    model = content.prior_scenes_model(profile.colour)
+    assert model.family == "scenes" and "NUS" in content.prior.SCENE_SPREAD["source"]

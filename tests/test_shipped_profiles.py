@@ -68,26 +68,31 @@ def test_shipped_profile_is_a_measured_camera(name):
     assert "NO NOISE MODEL" not in listing
     for part in ("colour", "noise", "illuminants", "content"):
         assert f"    {part}: " in listing
-    assert "    content: cast, each frame's mean colour" in listing and "applied by default" in listing
+    family = "cast, each frame's mean colour" if name == "s20fe_night" else "scenes, each frame's cast and brightness"
+    assert f"    content: {family}" in listing and "applied by default" in listing
 
 
 NUS_SHIPPED = ("Canon600D", "NikonD40", "NikonD5200", "OlympusEPL6", "PanasonicGX1", "SonyA57")
 
 
 @pytest.mark.parametrize("name", shipped_profiles())
-def test_shipped_profile_carries_the_prior_cast_model_applied_by_default(name):
-    """Out of the box a shipped profile converts CG frames as a fitted one does (issue 33): the
-    prior's 'cast' model through its own matrices; a NUS camera's within the spread of the nine
-    cameras' medians of the all-camera prior (its own scenes are left out of it)."""
-    from g2r_jax.content import prior_cast_model
+def test_shipped_profile_carries_the_prior_scenes_model_applied_by_default(name):
+    """Out of the box a shipped profile converts CG frames as a fitted one does (issues 33, 50): the
+    prior's 'scenes' table through its own matrices (the night profile: the prior's cast alone),
+    its median cast the prior's; a NUS camera's within the spread of the nine cameras' medians of
+    the all-camera prior (its own scenes are left out of it)."""
+    from g2r_jax.content import as_cast, prior_cast_model
 
     profile = load_profile(name)
     model = profile.content
-    assert model is not None and model.family == "cast" and model.apply_by_default
-    assert float(model.cast_scale) == 0.0
+    assert model is not None and model.apply_by_default
+    assert model.family == ("cast" if name == "s20fe_night" else "scenes")
+    if model.family == "scenes":
+        brightness = np.asarray(model.scene_brightness)
+        assert len(brightness) == 64 and np.ptp(brightness) > 0.1      # a spread of scenes, not one
     expected = np.asarray(prior_cast_model(profile.colour).cast_target)
     tolerance = 0.05 if name in NUS_SHIPPED else 1e-6
-    assert np.allclose(np.asarray(model.cast_target), expected, atol=tolerance), (name, model.cast_target, expected)
+    assert np.allclose(np.asarray(as_cast(model).cast_target), expected, atol=tolerance), (name, model.cast_target, expected)
 
 
 @pytest.mark.data
@@ -123,7 +128,7 @@ def _converter(name: str):
     def convert(iso, level):
         image = jnp.full(SIZE + (3,), level, jnp.float32)
         return unprocess(jax.random.PRNGKey(7), image, profile, transfer="linear", neutral=neutral, iso=iso,
-                         exposure_gain=1.0 / green_gain, effects=False)[0]
+                         exposure_gain=1.0 / green_gain, effects=False, content=False)[0]
     return profile, jax.jit(jax.vmap(convert))
 
 

@@ -160,12 +160,12 @@ def read_illuminant_csv(path: Path):
 
 def _content_choice(profile, args, say):
     """The profile with its content model kept, forced on or dropped as the flags say."""
-    from g2r_jax.content import as_cast, describe, prior_cast_model, with_default
+    from g2r_jax.content import as_cast, describe, prior_scenes_model, with_default
     from g2r_jax.profile.schema import replace
 
     model = profile.content
     if args.content_model and model is None:
-        model = prior_cast_model(profile.colour)
+        model = prior_scenes_model(profile.colour)
         say(f"profile {shown(profile.info.name)} has no content model: using the prior of real scenes' "
             "(g2r-fit-profile fits one to the camera's DNGs)")
     if model is None:

@@ -19,13 +19,15 @@ Without real images the real medians come from the prior of real scenes
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import numpy as np
 
 from g2r_jax.content import prior as _prior
 from g2r_jax.content.model import CAST_KEPT, FAMILIES, ContentModel, apply, content_model, identity
 from g2r_jax.content.scene_statistics import LUMINANCE as _LUMINANCE
-from g2r_jax.content.scene_statistics import SIZE, ContentStatistics, _area_average, statistics
+from g2r_jax.content.scene_statistics import NAMES, SIZE, ContentStatistics, _area_average, statistics
 
 _MEDIANS = ("chroma_spread", "brightness")
 _BISECTION_STEPS = 24
@@ -183,6 +185,36 @@ def prior_cast_model(colour_model, real_medians: dict | None = None, source: str
 
     neutral = np.asarray(xy_to_camera_neutral(jnp.asarray([0.3127, 0.3290]), colour_model), np.float64)
     return _cast_model(real_medians, srgb_to_camera_matrices(neutral[None], colour_model)[0], source or "given medians")
+
+
+def prior_scenes_model(colour_model, real_medians: dict | None = None, covariance=None, source: str = "",
+                       seed: int = 0) -> ContentModel:
+    """The 'scenes' model for a camera without files at hand (a shipped profile): a table of
+    `scenes.TABLE_SIZE` scenes drawn from the prior of real scenes, (cast_red, cast_blue, log
+    brightness) Gaussian about the prior's medians (`prior.REAL_SCENES`, or `real_medians`) with
+    the covariance of one camera's scenes about its own medians (`prior.SCENE_SPREAD`, or
+    `covariance`), carried to linear sRGB through `colour_model` at D65 as `prior_cast_model` is;
+    the table's medians are the prior's, so its median cast (`as_cast`) is `prior_cast_model`'s.
+    Measured against `prior_cast_model` on the NUS cameras with the camera under test left out of
+    both priors: docs/pages/validation/content_model.md, finding 5."""
+    import jax.numpy as jnp
+
+    from g2r_jax.colour.dng_model import xy_to_camera_neutral
+    from g2r_jax.content.real_images import srgb_to_camera_matrices
+    from g2r_jax.content.scenes import TABLE_SIZE
+
+    medians = dict(_prior.REAL_SCENES["medians"] if real_medians is None else real_medians)
+    covariance = np.asarray(_prior.SCENE_SPREAD["covariance"] if covariance is None else covariance, np.float64)
+    centre = np.array([medians["cast_red"], medians["cast_blue"], np.log(medians["brightness"])])
+    drawn = np.random.default_rng(seed).multivariate_normal(centre, covariance, TABLE_SIZE)
+    drawn += centre - np.median(drawn, axis=0)     # the table's medians the prior's exactly
+    values = {name: np.full(TABLE_SIZE, float(medians.get(name, np.nan))) for name in NAMES}
+    values.update(cast_red=drawn[:, 0], cast_blue=drawn[:, 1], brightness=np.clip(np.exp(drawn[:, 2]), 1e-3, 1.0))
+    neutral = np.asarray(xy_to_camera_neutral(jnp.asarray([0.3127, 0.3290]), colour_model), np.float64)
+    to_camera = srgb_to_camera_matrices(neutral[None], colour_model)[0]
+    drawn_scenes = ContentStatistics(values=values, source=source or "the prior of real scenes")
+    model = scenes_model(drawn_scenes, to_camera, "the prior of real scenes", prior_medians=medians)
+    return dataclasses.replace(model, target=tuple(sorted({**dict(model.target), "prior_draws": 1.0}.items())))
 
 
 def scene_cast_targets(real_statistics, to_camera, what: str = "real images", prior_medians: dict | None = None):

@@ -117,7 +117,8 @@ def describe(model: ContentModel) -> str:
     if model.family == "scenes":
         brightness = np.asarray(model.scene_brightness)
         count = int(dict(model.target).get("scenes", len(brightness)))
-        return (f"scenes, each frame's cast and brightness those of one of {count} real scenes drawn at random "
+        scenes = "scenes drawn from the prior of real scenes" if dict(model.target).get("prior_draws") else "real scenes"
+        return (f"scenes, each frame's cast and brightness those of one of {count} {scenes}, one picked at random per frame "
                 f"(brightness {np.min(brightness):.2f}-{np.max(brightness):.2f}, median {np.median(brightness):.2f})")
     if model.family == "cast":
         r, g, b = (float(v) for v in model.cast_target)

@@ -29,6 +29,14 @@ REFERENCE_CG = {"medians": {"chroma_spread": 0.14527, "brightness": 0.31836, "ca
 # nine cameras' medians about each other, measured on the NUS thumbnails as REAL_SCENES is.
 CAST_SPREAD = {"cast_red": {"per_image": 0.1163, "between_cameras": 0.0123},
                "cast_blue": {"per_image": 0.1530, "between_cameras": 0.0254}}
+# How the scenes of one camera spread about their medians, for a 'scenes' model without files
+# (`fitting.prior_scenes_model`): the covariance of (cast_red, cast_blue, log brightness) over the
+# NUS thumbnails, each camera's files centred on its own medians, the nine cameras pooled
+# (`scene_covariance`). The casts' sd 0.14 and 0.18, the brightness' a factor of 2.2 (0.78 in log).
+SCENE_SPREAD = {"statistics": ("cast_red", "cast_blue", "log brightness"),
+                "covariance": ((0.02059, -0.01058, -0.01182), (-0.01058, 0.03085, 0.02360),
+                               (-0.01182, 0.02360, 0.60929)),
+                "source": "prior: NUS 8-camera set, nine cameras' files about their camera's medians"}
 NUS_CAMERAS = ("Canon1DsMkIII", "Canon600D", "FujifilmXM1", "NikonD40", "NikonD5200", "OlympusEPL6",
                "PanasonicGX1", "SamsungNX2000", "SonyA57")
 
@@ -70,6 +78,22 @@ def real_scenes_without(data: Path, camera: str | None) -> dict:
         raise ValueError(f"{camera!r} is not a NUS camera ({', '.join(NUS_CAMERAS)})")
     per_camera = [nus_statistics(data, name).medians() for name in NUS_CAMERAS if name != camera]
     return {k: float(np.median([m[k] for m in per_camera])) for k in per_camera[0]}
+
+
+def scene_covariance(data: Path, camera: str | None = None) -> np.ndarray:
+    """`SCENE_SPREAD`'s covariance (3, 3) recomputed from ../shared/data (`data`), the NUS camera
+    `camera` left out when given (none of its own scenes informs its own prior)."""
+    if camera is not None and camera not in NUS_CAMERAS:
+        raise ValueError(f"{camera!r} is not a NUS camera ({', '.join(NUS_CAMERAS)})")
+    centred = []
+    for name in NUS_CAMERAS:
+        if name == camera:
+            continue
+        values = nus_statistics(data, name).values
+        rows = np.stack([values["cast_red"], values["cast_blue"], np.log(values["brightness"])], -1)
+        rows = rows[np.all(np.isfinite(rows), axis=1)]
+        centred.append(rows - np.median(rows, axis=0))
+    return np.cov(np.concatenate(centred).T)
 
 
 def measure_reference_cg(data: Path) -> dict:
