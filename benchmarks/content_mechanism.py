@@ -22,7 +22,8 @@ cast and the median brightness, a luminance power) and `draw+tone` (one file's c
 Issue 50's variants, the content of a profile without files: `prior-cast` (the shipped profile's before
 issue 50's finding: the prior's median cast with the camera under test left out) and `prior-scenes` (`content.prior_scenes_model`:
 a 'scenes' table drawn from the spread of the other eight cameras' scenes about their medians,
-centred on the prior's medians without the camera).
+centred on the prior's medians without the camera); `scenes+prior@K` the files' scenes with K
+of the prior's as pseudo-files (`fitting.scenes_model(prior_scenes=K)`).
 
 Data: ../shared/data/estimation/nus/<camera>.npz and ../shared/data/cg/carla/*.png.
 """
@@ -155,6 +156,23 @@ def prior_scenes_model(camera, profile, seed: int):
                                       prior.scene_covariance(DATA, camera), f"prior without {camera}", seed)
 
 
+def blended_scenes_model(camera, profile, images, lights, views, prior_scenes: int, seed: int):
+    """`scenes+prior@K`: the 'scenes' model of the files `images` (as `scenes`) with K scenes of the
+    prior (`fitting.scenes_model(prior_scenes=K)`), the camera under test left out of the prior's
+    medians and spread."""
+    from downstream_nus import DATA
+
+    from g2r_jax import content
+    from g2r_jax.content import prior
+    from g2r_jax.content.fitting import scenes_model
+
+    real = content.statistics(content.white_balanced_camera_rgb(images, lights), source="inner files")
+    neutral = np.median(lights / lights[:, 1:2], axis=0)
+    to_camera = content.srgb_to_camera_matrices(neutral[None], profile.colour)[0]
+    return scenes_model(real, to_camera, prior_medians=prior.real_scenes_without(DATA, camera),
+                        prior_scenes=prior_scenes, prior_covariance=prior.scene_covariance(DATA, camera), seed=seed)
+
+
 def run(cameras, variants, estimators, seed: int, n: int, files: int | None = None) -> dict:
     """{estimator/variant: {camera: [mean inner-third error per fold, degrees]}}; `files`: the fitted
     families ('cast', 'scenes') see only that many of the inner two thirds' files, drawn at random
@@ -169,7 +187,7 @@ def run(cameras, variants, estimators, seed: int, n: int, files: int | None = No
     linear = training_sets.linear_images([np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))])
     views = training_sets.cg_views(linear, n, seed)
     adapted = {name: variant_views(name, views) for name in variants
-               if name not in ("cast", "scenes", "prior-cast", "prior-scenes")
+               if name not in ("cast", "scenes", "prior-cast", "prior-scenes") and not name.startswith("scenes+prior@")
                and not name.startswith(("draw", "cast+tone", "cast+top"))}
     errors, start = {}, time.perf_counter()
     for camera in cameras:
@@ -193,6 +211,11 @@ def run(cameras, variants, estimators, seed: int, n: int, files: int | None = No
 
                 adapted["prior-cast"] = product.adapted_views(as_cast(shipped_content_model(camera, profile.colour)),
                                                               views, 50_000 + 100 * seed + fold)
+            for name in [v for v in variants if v.startswith("scenes+prior@")]:   # the files' scenes and K of the prior's
+                adapted[name] = product.adapted_views(
+                    blended_scenes_model(camera, profile, real.images[scenes_of], real.illuminants[scenes_of], views,
+                                         int(name.partition("@")[2]), 70_000 + 100 * seed + fold),
+                    views, 50_000 + 100 * seed + fold)
             if "prior-scenes" in variants:
                 adapted["prior-scenes"] = product.adapted_views(
                     prior_scenes_model(camera, profile, 70_000 + 100 * seed + fold),

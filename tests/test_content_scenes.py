@@ -197,3 +197,21 @@ def test_the_split_is_a_factor_per_pixel_times_a_diagonal():
         assert np.allclose(split, np.asarray(content.apply(model, linear, draw, grid)), rtol=1e-6, atol=1e-7)
         spreads.append(np.ptp(factor))
     assert max(spreads) > 0.01    # the tone acts on some of these draws
+
+
+def test_a_frame_the_curve_cannot_darken_is_not_raised_whole():
+    """A flat frame lies wholly above its knee: no power lowers its brightness, so it keeps q = 1
+    (only the cast's gains) rather than the range's end, which raised every pixel 128 times; a
+    frame with a body below its knee still takes the power its drawn scene asks for."""
+    model = _model()
+    flat = np.full((64, 64, 3), 0.4, np.float32)
+    grid = content.mean_grid(flat)
+    for draw in (0.1, 0.5, 0.9):
+        _, tone = content.scenes_split(model, draw, grid)
+        assert float(np.asarray(tone[1]).reshape(())) == pytest.approx(1.0, abs=1e-4)
+        out = np.asarray(content.apply(model, flat, draw, grid))
+        assert out.max() < 0.4 * 1.5
+    frame = _frames(1)[0]
+    powers = [float(np.asarray(content.scenes_split(model, d, content.mean_grid(frame))[1][1]).reshape(()))
+              for d in (0.1, 0.3, 0.5, 0.7, 0.9)]
+    assert max(powers) > 1.05

@@ -204,12 +204,9 @@ def prior_scenes_model(colour_model, real_medians: dict | None = None, covarianc
     from g2r_jax.content.scenes import TABLE_SIZE
 
     medians = dict(_prior.REAL_SCENES["medians"] if real_medians is None else real_medians)
-    covariance = np.asarray(_prior.SCENE_SPREAD["covariance"] if covariance is None else covariance, np.float64)
-    centre = np.array([medians["cast_red"], medians["cast_blue"], np.log(medians["brightness"])])
-    drawn = np.random.default_rng(seed).multivariate_normal(centre, covariance, TABLE_SIZE)
-    drawn += centre - np.median(drawn, axis=0)     # the table's medians the prior's exactly
+    drawn = prior_scene_draws(TABLE_SIZE, medians, covariance, seed)
     values = {name: np.full(TABLE_SIZE, float(medians.get(name, np.nan))) for name in NAMES}
-    values.update(cast_red=drawn[:, 0], cast_blue=drawn[:, 1], brightness=np.clip(np.exp(drawn[:, 2]), 1e-3, 1.0))
+    values.update(cast_red=drawn[:, 0], cast_blue=drawn[:, 1], brightness=drawn[:, 2])
     neutral = np.asarray(xy_to_camera_neutral(jnp.asarray([0.3127, 0.3290]), colour_model), np.float64)
     to_camera = srgb_to_camera_matrices(neutral[None], colour_model)[0]
     drawn_scenes = ContentStatistics(values=values, source=source or "the prior of real scenes")
@@ -237,15 +234,32 @@ def scene_cast_targets(real_statistics, to_camera, what: str = "real images", pr
     centre = dict(cast.target)
     red = red - np.median(red[distinct]) + centre["cast_red"]
     blue = blue - np.median(blue[distinct]) + centre["cast_blue"]
+    return cast, np.flatnonzero(usable), _linear_targets(red, blue, to_camera), brightness, distinct
+
+
+def _linear_targets(red, blue, to_camera) -> np.ndarray:
+    """Casts (log r/g, log b/g in the camera's white-balanced RGB) as linear sRGB colours (M, 3)
+    through to_camera^-1, floored at 1e-3 of their luminance (NaN where it is not positive)."""
     in_camera = np.stack([np.exp(red), np.ones(len(red)), np.exp(blue)], -1)
     to_camera = np.eye(3) if to_camera is None else np.asarray(to_camera, np.float64)
     targets = np.linalg.solve(to_camera, in_camera.T).T
     luminance = targets @ _LUMINANCE
-    targets = np.where(luminance[:, None] > 0, np.maximum(targets, 1e-3 * luminance[:, None]), np.nan)
-    return cast, np.flatnonzero(usable), targets, brightness, distinct
+    return np.where(luminance[:, None] > 0, np.maximum(targets, 1e-3 * luminance[:, None]), np.nan)
 
 
-def scenes_model(real_statistics, to_camera, what: str = "real images", prior_medians: dict | None = None) -> ContentModel:
+def prior_scene_draws(count: int, medians: dict, covariance=None, seed: int = 0) -> np.ndarray:
+    """`count` scenes (count, 3) of (cast_red, cast_blue, brightness) drawn from the prior of real
+    scenes: (cast_red, cast_blue, log brightness) Gaussian about `medians` with `covariance`
+    (`prior.SCENE_SPREAD`'s by default), the draws' medians moved onto `medians` exactly."""
+    covariance = np.asarray(_prior.SCENE_SPREAD["covariance"] if covariance is None else covariance, np.float64)
+    centre = np.array([medians["cast_red"], medians["cast_blue"], np.log(medians["brightness"])])
+    drawn = np.random.default_rng(seed).multivariate_normal(centre, covariance, count)
+    drawn += centre - np.median(drawn, axis=0)
+    return np.stack([drawn[:, 0], drawn[:, 1], np.clip(np.exp(drawn[:, 2]), 1e-3, 1.0)], -1)
+
+
+def scenes_model(real_statistics, to_camera, what: str = "real images", prior_medians: dict | None = None,
+                 prior_scenes: int = 0, prior_covariance=None, seed: int = 0) -> ContentModel:
     """'scenes' (`g2r_jax.content.scenes`): a table of the files' own scenes, each its grey-world
     cast and its brightness, the casts re-centred on the median shrunk toward the prior's
     (`_toward_the_prior`), carried to linear sRGB like 'cast' (a target outside the sRGB gamut at
@@ -259,12 +273,21 @@ def scenes_model(real_statistics, to_camera, what: str = "real images", prior_me
         return cast
     centre = dict(cast.target)
     casts, brightness = casts[distinct], brightness[distinct]
+    if prior_scenes > 0:    # the prior's scenes as pseudo-files (a Dirichlet process's n0), about the same centre
+        medians = {**_real_prior(prior_medians)["medians"], "cast_red": centre["cast_red"], "cast_blue": centre["cast_blue"]}
+        drawn = prior_scene_draws(prior_scenes, medians, prior_covariance, seed)
+        casts = np.concatenate([casts, _linear_targets(drawn[:, 0], drawn[:, 1], to_camera)])
+        brightness = np.concatenate([brightness, drawn[:, 2]])
     rows = table_rows(len(casts))
     targets = casts[rows]
     if not np.all(np.isfinite(targets)):
         raise ValueError("cannot fit the scenes model: a real scene's cast has no positive luminance at this light")
     source = real_statistics.source or what
+    files = len(distinct)
+    words = f"{files} distinct scenes" + (f" and {prior_scenes} of the prior of real scenes" if prior_scenes > 0 else "")
+    extra = {"prior_scenes": float(prior_scenes)} if prior_scenes > 0 else {}
     return content_model(family="scenes", scene_casts=targets, scene_brightness=np.clip(brightness[rows], 1e-3, 1.0),
                          cast_target=np.asarray(cast.cast_target),
-                         source=f"{source}: each CG frame's cast and brightness those of one of its {len(casts)} distinct scenes",
-                         target={**centre, "brightness": float(np.median(brightness)), "scenes": float(len(casts))})
+                         source=f"{source}: each CG frame's cast and brightness those of one of its {words}",
+                         target={**centre, "brightness": float(np.median(brightness[:files])), "scenes": float(files),
+                                 **extra})

@@ -11,7 +11,9 @@ u in [0, 1), k = floor(u K):
 1. brightness: the highlights spread upward, the body kept: above the knee C = 1/2 of the frame's
    peak luminance, x1 = x (Y / C)^(q - 1), so Y1 = C (Y / C)^q, each pixel's chroma kept, below it
    x1 = x; q in [1, 8] found by bisection on the frame's mean grid (`model.mean_grid`) so that its
-   brightness reaches b_k (it falls as q rises; a frame darker than b_k stays as it is). Real
+   brightness reaches b_k (it falls as q rises; a frame darker than b_k stays as it is; one the
+   curve cannot darken that far takes the least q within `REACH` of the darkest it can be, so a
+   flat frame, wholly above its knee, is not raised whole). Real
    scenes owe their low mean under the peak to a few highlights far above a body whose light
    spreads like the CG frames' (docs/pages/validation/content_model.md, finding 4): a power on the
    whole range (Y1 = P (Y / P)^p) reached the brightness too but spread the body's light by p
@@ -49,6 +51,7 @@ MIN_FILES = 1    # distinct scenes; the measurement found 'scenes' ahead of 'cas
 POWER_RANGE = (1.0, 8.0)
 KNEE = 0.5      # of the frame's peak luminance: the threshold of the check's bright share
 _BISECTION_STEPS = 20
+REACH = 0.01     # of the darkest brightness the curve reaches: an unreachable target's stand-in
 
 
 SAME_SCENE = (0.02, 0.02, 0.05)   # cells of log r/g, log b/g and log brightness: files in one are one scene
@@ -97,7 +100,8 @@ def _peak_luminance(grid):
 def tone_power(grid, brightness, target):
     """The power q (...,) that takes the brightness of the toned grid (..., h, w, 3), its cast
     then taken to `target` (..., 3) by the 'cast' gains, to `brightness` (...,): by bisection in
-    log q over `POWER_RANGE` (an end when out of reach). With the gains g_c = Y_m t_c / m_c the
+    log q over `POWER_RANGE`; a target out of reach is taken as `REACH` above the darkest brightness
+    the range can give (the smallest power that comes that near it). With the gains g_c = Y_m t_c / m_c the
     mean luminance is Y_m (t has luminance 1), so the brightness is 1 / max_c (t_c M_c / m_c), M_c
     and m_c the toned grid's largest and mean value in channel c: no gains applied per step."""
     peak = _peak_luminance(grid)
@@ -107,15 +111,22 @@ def tone_power(grid, brightness, target):
     log_above = jnp.log(jnp.maximum(_luminance(grid) / (KNEE * peak[..., 0]), 1.0))
     target = jnp.asarray(target, jnp.float32)
 
-    def step(_, bounds):
-        low, high = bounds
-        middle = 0.5 * (low + high)
-        toned = grid * jnp.exp((jnp.exp(middle)[..., None, None] - 1.0) * log_above)[..., None]
+    def reached(log_power):
+        toned = grid * jnp.exp((jnp.exp(log_power)[..., None, None] - 1.0) * log_above)[..., None]
         mean = jnp.mean(toned, axis=(-3, -2))
         top = jnp.max(toned, axis=(-3, -2))
         ratio = jnp.max(target * top / jnp.where(mean > 0, mean, 1.0), axis=-1)
-        reached = 1.0 / jnp.where(ratio > 0, ratio, 1.0)
-        too_bright = reached > brightness
+        return 1.0 / jnp.where(ratio > 0, ratio, 1.0)
+
+    # A frame the curve cannot darken to the scene's brightness takes the least power that comes
+    # within `REACH` of the darkest it can make it: a flat frame, all of it at its peak and so above
+    # the knee, stays as it is instead of being raised whole by 2^(q - 1).
+    brightness = jnp.maximum(brightness, (1.0 + REACH) * reached(high))
+
+    def step(_, bounds):
+        low, high = bounds
+        middle = 0.5 * (low + high)
+        too_bright = reached(middle) > brightness
         return jnp.where(too_bright, middle, low), jnp.where(too_bright, high, middle)
 
     low, high = jax.lax.fori_loop(0, _BISECTION_STEPS, step, (low, high))
