@@ -127,7 +127,10 @@ def scenes_content(camera, profile, images, lights, views):
         return shipped_content_model(camera, profile.colour)
     if camera not in _PRIORS_WITHOUT:
         _PRIORS_WITHOUT[camera] = content_prior.real_scenes_without(DATA, camera)
-    return candidate_model(FITTED, images, lights, views, profile, prior_medians=_PRIORS_WITHOUT[camera])
+    from g2r_jax.content.prior import scene_covariance
+
+    return candidate_model(FITTED, images, lights, views, profile, prior_medians=_PRIORS_WITHOUT[camera],
+                           prior_covariance=scene_covariance(DATA, camera))
 
 
 def _done(out: Path) -> set:

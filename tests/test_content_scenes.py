@@ -42,9 +42,20 @@ def test_fit_holds_the_files_scenes_from_one_file_on():
     assert np.allclose(np.asarray(model.scene_casts) @ LUMINANCE, 1.0, atol=1e-5)
     real = _real_statistics(40)
     held = np.asarray(model.scene_brightness)
-    assert np.all(np.min(np.abs(held[:, None] - real.values["brightness"][None]), axis=1) < 1e-6)
-    one = content.fit_content_model(_real_statistics(1), family="scenes")
-    assert one.family == "scenes" and len(set(np.asarray(one.scene_brightness).tolist())) == 1
+    from_files = np.min(np.abs(held[:, None] - real.values["brightness"][None]), axis=1) < 1e-6
+    # the files' scenes fill their share of the table, the prior's pseudo-files the rest
+    assert from_files.mean() == np.mean(scenes.table_rows(40 + scenes.PRIOR_SCENES) < 40)
+    alone = content.fitting.scenes_model(real, None, prior_scenes=0)
+    assert np.all(np.min(np.abs(np.asarray(alone.scene_brightness)[:, None] - real.values["brightness"][None]), axis=1) < 1e-6)
+    one_file = _real_statistics(1)
+    one = content.fit_content_model(one_file, family="scenes")
+    brightness = np.asarray(one.scene_brightness)
+    assert one.family == "scenes" and dict(one.target)["scenes"] == 1.0 and dict(one.target)["prior_scenes"] == 5.0
+    own = np.isclose(brightness, one_file.values["brightness"][0])
+    assert own.mean() == np.mean(scenes.table_rows(1 + scenes.PRIOR_SCENES) < 1)
+    assert len(set(brightness[~own].tolist())) == scenes.PRIOR_SCENES
+    alone = content.fitting.scenes_model(one_file, None, prior_scenes=0)
+    assert len(set(np.asarray(alone.scene_brightness).tolist())) == 1
 
 
 def test_a_burst_of_one_scene_is_not_a_distribution_of_scenes():

@@ -89,7 +89,7 @@ def _parameters_from_medians(real: dict, cg: dict, family: str) -> tuple[float, 
 
 
 def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str = "chroma", cg_sample=None,
-                      to_camera=None, prior_medians: dict | None = None) -> ContentModel:
+                      to_camera=None, prior_medians: dict | None = None, prior_covariance=None) -> ContentModel:
     """The content model of `family` (`model.FAMILIES`) that takes the CG images' statistics to
     the real images'.
 
@@ -101,7 +101,9 @@ def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str =
     `cg_statistics` is not used); `to_camera`: (3, 3) linear sRGB -> the camera's white-balanced
     RGB for `cg_sample` (`real_images.srgb_to_camera_matrices`; default: the identity);
     `prior_medians`: the prior of real scenes' medians to fall back on and shrink toward (default
-    `prior.REAL_SCENES`; e.g. `prior.real_scenes_without(data, camera)` in a leave-one-out run).
+    `prior.REAL_SCENES`; e.g. `prior.real_scenes_without(data, camera)` in a leave-one-out run);
+    `prior_covariance`: 'scenes' only, the spread of the prior's scenes (default `prior.SCENE_SPREAD`;
+    `prior.scene_covariance(data, camera)` in a leave-one-out run).
     **Returns:** a `ContentModel`, its `target` the real medians it was fitted to.
     """
     if family not in FAMILIES:
@@ -111,7 +113,7 @@ def fit_content_model(real_statistics=None, cg_statistics=None, *, family: str =
     if family == "cast":
         return _cast_model(real_statistics, to_camera, prior_medians=prior_medians)
     if family == "scenes":
-        return scenes_model(real_statistics, to_camera, prior_medians=prior_medians)
+        return scenes_model(real_statistics, to_camera, prior_medians=prior_medians, prior_covariance=prior_covariance)
     real, real_source = _medians(real_statistics, _real_prior(prior_medians), "real images")
     if cg_sample is not None:
         scale, power = _parameters_from_sample(real, cg_sample, to_camera, family)
@@ -210,7 +212,7 @@ def prior_scenes_model(colour_model, real_medians: dict | None = None, covarianc
     neutral = np.asarray(xy_to_camera_neutral(jnp.asarray([0.3127, 0.3290]), colour_model), np.float64)
     to_camera = srgb_to_camera_matrices(neutral[None], colour_model)[0]
     drawn_scenes = ContentStatistics(values=values, source=source or "the prior of real scenes")
-    model = scenes_model(drawn_scenes, to_camera, "the prior of real scenes", prior_medians=medians)
+    model = scenes_model(drawn_scenes, to_camera, "the prior of real scenes", prior_medians=medians, prior_scenes=0)
     return dataclasses.replace(model, target=tuple(sorted({**dict(model.target), "prior_draws": 1.0}.items())))
 
 
@@ -259,15 +261,20 @@ def prior_scene_draws(count: int, medians: dict, covariance=None, seed: int = 0)
 
 
 def scenes_model(real_statistics, to_camera, what: str = "real images", prior_medians: dict | None = None,
-                 prior_scenes: int = 0, prior_covariance=None, seed: int = 0) -> ContentModel:
+                 prior_scenes: int | None = None, prior_covariance=None, seed: int = 0) -> ContentModel:
     """'scenes' (`g2r_jax.content.scenes`): a table of the files' own scenes, each its grey-world
     cast and its brightness, the casts re-centred on the median shrunk toward the prior's
     (`_toward_the_prior`), carried to linear sRGB like 'cast' (a target outside the sRGB gamut at
     this light is floored at 1e-3 of its luminance), each distinct scene once
-    (`scenes.distinct_scenes`); the 'cast' model when fewer than `scenes.MIN_FILES` scenes have a
-    finite cast and brightness, or when `real_statistics` is not per-file statistics (medians)."""
-    from g2r_jax.content.scenes import MIN_FILES, table_rows
+    (`scenes.distinct_scenes`), with `prior_scenes` (default `scenes.PRIOR_SCENES`) scenes of the
+    prior of real scenes (`prior_scene_draws` with `prior_covariance`, seeded by `seed`, about the
+    same cast centre and the prior's brightness) as pseudo-files: few files are not the camera's
+    whole distribution of scenes, as few lights are not its lights. The 'cast' model when fewer
+    than `scenes.MIN_FILES` scenes have a finite cast and brightness, or when `real_statistics` is
+    not per-file statistics (medians)."""
+    from g2r_jax.content.scenes import MIN_FILES, PRIOR_SCENES, table_rows
 
+    prior_scenes = PRIOR_SCENES if prior_scenes is None else int(prior_scenes)
     cast, _, casts, brightness, distinct = scene_cast_targets(real_statistics, to_camera, what, prior_medians)
     if casts is None or len(distinct) < MIN_FILES:
         return cast

@@ -48,6 +48,11 @@ from g2r_jax.content.scene_statistics import luminance
 
 TABLE_SIZE = 64
 MIN_FILES = 1    # distinct scenes; the measurement found 'scenes' ahead of 'cast' from one file on
+# The prior's scenes (`fitting.prior_scene_draws`) the files' table takes as pseudo-files, as the
+# lights' kernel takes its prior (`illuminants.kernel.PRIOR_PSEUDO_LIGHTS`): one file's scene then
+# fills a sixth of the table, 100 files 95 %. Chosen between 0, 5 and 20 on the inner third of the
+# training folds, 1, 5 and 20 files, three NUS cameras, two seeds (content_model.md, finding 5).
+PRIOR_SCENES = 5
 POWER_RANGE = (1.0, 8.0)
 KNEE = 0.5      # of the frame's peak luminance: the threshold of the check's bright share
 _BISECTION_STEPS = 20

@@ -57,13 +57,13 @@ def _jitted_apply():
 
 
 def candidate_model(name: str, images: np.ndarray, lights: np.ndarray, views: np.ndarray, profile,
-                    prior_medians: dict | None = None):
+                    prior_medians: dict | None = None, prior_covariance=None):
     """The content model of candidate `name`: 'chroma@S' a chroma scale S given, 'cast@C' a kept
     cast C given (family 'cast'); otherwise a family
     of `g2r_jax.content.FAMILIES` fitted to real thumbnails `images` (white-balanced by `lights`,
     as a DNG's AsShotNeutral would) and a sample of the CG `views`, in the camera's white-balanced
     RGB at the median light (`fit_content_model`, its prior of real scenes `prior_medians` when
-    given; 'identity' fits to the identity)."""
+    given, and for 'scenes' the spread of its scenes `prior_covariance`; 'identity' fits to the identity)."""
     from g2r_jax import content
 
     family, given, value = name.partition("@")
@@ -82,4 +82,4 @@ def candidate_model(name: str, images: np.ndarray, lights: np.ndarray, views: np
     neutral = np.median(lights / lights[:, 1:2], axis=0)
     to_camera = content.srgb_to_camera_matrices(neutral[None], profile.colour)[0]
     return content.fit_content_model(real, family=name, cg_sample=views, to_camera=to_camera,
-                                     prior_medians=prior_medians)
+                                     prior_medians=prior_medians, prior_covariance=prior_covariance)
