@@ -118,6 +118,12 @@ def describe(model: ContentModel) -> str:
         brightness = np.asarray(model.scene_brightness)
         count = int(dict(model.target).get("scenes", len(brightness)))
         scenes = "scenes drawn from the prior of real scenes" if dict(model.target).get("prior_draws") else "real scenes"
+        prior_scenes = int(dict(model.target).get("prior_scenes", 0))
+        if prior_scenes:
+            from g2r_jax.content.scenes import table_rows
+
+            share = float(np.mean(table_rows(count + prior_scenes, len(brightness)) < count))
+            scenes += f" ({share:.0%} of the draws) or {prior_scenes} of the prior of real scenes"
         return (f"scenes, each frame's cast and brightness those of one of {count} {scenes}, one picked at random per frame "
                 f"(brightness {np.min(brightness):.2f}-{np.max(brightness):.2f}, median {np.median(brightness):.2f})")
     if model.family == "cast":
