@@ -34,6 +34,7 @@ Identical models (e.g. `auto` below 10 lights and `prior`) are trained once.
         [--seeds 1] [--n 300] [--draws 1] --out out/few_lights.jsonl
     python benchmarks/few_lights.py --summary --out out/few_lights.jsonl
     python benchmarks/few_lights.py --energy
+    python benchmarks/few_lights.py --energy-lodo default,n0:20,near:12,wide:2 --lights 0,1,5
 
 Every finished (camera, row, content, estimator, seed, fold, draw) is one line of `--out`, so a run
 stopped early keeps what it did and a rerun with the same `--out` skips it; `--summary` prints
@@ -294,6 +295,83 @@ def energy_table(cameras) -> str:
     return "\n".join(out)
 
 
+GEHLER_SHI = ("Canon EOS-1D", "Canon EOS 5D")
+
+
+def _lodo_targets():
+    """(name, colour model, (N, 2) lights, pool sources to leave out): the two Gehler-Shi cameras
+    with the NUS pool (every Gehler-Shi camera left out) and the nine NUS cameras with the
+    Gehler-Shi pool (every NUS camera left out)."""
+    from g2r_jax.illuminants import distributions as il
+    from g2r_jax.illuminants.prior_fit import measured_sets
+
+    out = [(m.name, m.colour_model, il.neutral_to_chromaticity(m.neutrals), GEHLER_SHI)
+           for m in measured_sets(DATA) if m.name in GEHLER_SHI]
+    for camera in CAMERAS:
+        lights = il.neutral_to_chromaticity(np.load(NUS / f"{camera}.npz")["illuminants"].astype(np.float64))
+        out.append((camera, camera_profile(camera).colour, lights, CAMERAS))
+    return out
+
+
+def _lodo_variant(variant, points, colour, exclude):
+    """A few-light model for `--energy-lodo`: 'default' (what g2r-fit-profile fits), 'n0:K' (the
+    pooled blend with K pseudo-lights for the pool, the default 5), 'near:H' (the pool's lights
+    weighted by a kernel H times the default bandwidths around the files' lights), 'wide:H' (the
+    pool's kernels H times wider)."""
+    from g2r_jax.illuminants import choice, kernel, pooled
+
+    if variant == "default":
+        return choice.choose_illuminant_model(points, colour, "auto", exclude=exclude).model
+    kind, _, value = variant.partition(":")
+    carried = pooled.carried_lights(colour, exclude)
+    spots, weights, factor = carried.chromaticities, carried.weights, float(value)
+    bandwidths = kernel.DEFAULT_BANDWIDTHS
+    if kind == "near" and len(points):
+        covariances = kernel.kernel_covariances(choice.camera_locus_tangents(points, colour),
+                                                factor * bandwidths[0], factor * bandwidths[1])
+        offsets = spots[:, None, :] - points[None, :, :]
+        distance = np.einsum("ijk,jkl,ijl->ij", offsets, np.linalg.inv(covariances), offsets)
+        weights = weights * np.exp(-0.5 * distance).mean(1)
+    wide = (factor * bandwidths[0], factor * bandwidths[1]) if kind == "wide" else bandwidths
+    base = kernel.fit_kernel(spots, choice.camera_locus_tangents(spots, colour), bandwidths=wide,
+                             weights=weights / weights.sum(), dtype=np.float64)
+    if not len(points):
+        return base
+    pseudo = factor if kind == "n0" else kernel.PRIOR_PSEUDO_LIGHTS
+    return kernel.fit_kernel(points, choice.camera_locus_tangents(points, colour), prior=base, prior_lights=pseudo,
+                             bandwidths=bandwidths)
+
+
+def energy_lodo_table(variants, counts, draws: int = 10) -> str:
+    """Markdown: the energy distance (`distributions.energy_distance`, 1000 draws) between each
+    few-light model of `count` lights drawn at random from a camera's measured lights and all of
+    them, mean of `draws` draws, leave-one-dataset-out (`_lodo_targets`); the mean over the
+    Gehler-Shi cameras (where a constant would be chosen) and over the NUS cameras."""
+    import jax
+
+    from g2r_jax.illuminants import choice, distributions as il
+
+    rows = {}
+    for name, colour, lights, exclude in _lodo_targets():
+        for count in counts:
+            for variant in variants:
+                distances = []
+                for draw in range(draws):
+                    chosen = np.random.default_rng([count, draw]).choice(len(lights), count, replace=False)
+                    points = choice.distinct_lights(lights[chosen]) if count else np.zeros((0, 2))
+                    model = _lodo_variant(variant, points, colour, exclude)
+                    drawn = il.sample_neutrals(jax.random.PRNGKey(draw), model, 1000)
+                    distances.append(il.energy_distance(il.neutral_to_chromaticity(np.asarray(drawn, np.float64)), lights))
+                rows[(name, count, variant)] = float(np.mean(distances))
+    out = ["| lights | variant | Gehler-Shi (NUS pool) | NUS (Gehler-Shi pool) |", "|---|---|---|---|"]
+    for count in counts:
+        for variant in variants:
+            gs = np.mean([rows[(n, count, variant)] for n in GEHLER_SHI])
+            nus = np.mean([rows[(n, count, variant)] for n in CAMERAS])
+            out.append(f"| {count} | {variant} | {gs:.4f} | {nus:.4f} |")
+    return "\n".join(out)
+
+
 def where_lights_sit() -> str:
     """Markdown: each NUS camera's measured lights as its own colour matrices place them (median
     mired and Duv x 1000, `illuminants.pooled`'s data), against the median of the other cameras'
@@ -341,6 +419,9 @@ def main(argv=None) -> int:
     parser.add_argument("--draws", type=int, default=3)
     parser.add_argument("--out", type=Path, default=Path("out/few_lights.jsonl"))
     parser.add_argument("--summary", action="store_true", help="print the table of --out and stop")
+    parser.add_argument("--energy-lodo", default="", metavar="VARIANTS",
+                        help="print the energy distance of few-light variants (default, n0:K, near:H, wide:H) "
+                        "to all lights, leave-one-dataset-out, at --lights (numbers), and stop")
     parser.add_argument("--energy", action="store_true", help="print the zero-light models' energy distance "
                         "to each camera's measured lights and stop")
     args = parser.parse_args(argv)
@@ -356,6 +437,9 @@ def main(argv=None) -> int:
     if not NUS.is_dir() or not CARLA.is_dir():
         print(f"cannot run: needs {NUS} and {CARLA}", file=sys.stderr)
         return 2
+    if args.energy_lodo:
+        print(energy_lodo_table(args.energy_lodo.split(","), [int(c) for c in args.lights.split(",")]))
+        return 0
     if args.energy:
         print(energy_table(args.cameras.split(",")))
         print("\n" + where_lights_sit())
