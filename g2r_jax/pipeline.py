@@ -147,10 +147,11 @@ def render_mosaic(image, conditions, profile, *, transfer: str = "srgb", noise: 
     curve = "gamma2.2" if recipe == "published" else transfer
     linear = decode(image, curve)
     grid = lambda: decode(_content.mean_grid(image), curve)
-    scene = adapted_scene(linear, profile, content, grid, conditions.get("content_draw")) if return_scene else None
+    count = None if valid_shape is None else _content.grid_count(image.shape, jnp.asarray(valid_shape))
+    scene = adapted_scene(linear, profile, content, grid, conditions.get("content_draw"), count) if return_scene else None
     highlight_safe = resolve_highlight_safe(highlight_safe, recipe)
     linear, conditions = content_stage(linear, conditions, profile, content, colour, grid=grid,
-                                       highlight_safe=highlight_safe)
+                                       highlight_safe=highlight_safe, grid_count=count)
 
     # 5. Un-white-balance and mosaic in one step, scaled so that white reaches 1 in the
     #    strongest channel, then a global exposure gain.
@@ -201,13 +202,14 @@ def _active_content(profile, content: bool | None):
     return model
 
 
-def _content_pixels(model, linear, grid, draw):
-    """The model on the pixels (a non-linear family); 'scenes' takes its draw and grid."""
+def _content_pixels(model, linear, grid, draw, count=None):
+    """The model on the pixels (a non-linear family); 'scenes' takes its draw, grid and the grid's
+    pixels inside a padded image (`count`)."""
     if model.family == "scenes":
         if draw is None:
             raise ValueError("the content model 'scenes' needs the image's draw: conditions from `sample_conditions` "
                              "with this profile")
-        return _content.apply(model, linear, draw, None if grid is None else grid())
+        return _content.apply(model, linear, draw, None if grid is None else grid(), count)
     return _content.apply(model, linear)
 
 
@@ -218,7 +220,7 @@ def _content_matrix(model, linear, grid):
 
 
 def content_stage(linear, conditions, profile, content: bool | None, colour: str = "matrix", grid=None,
-                  highlight_safe: bool = False):
+                  highlight_safe: bool = False, grid_count=None):
     """Step 1b: the profile's content model (`g2r_jax.content`) on the scene-linear image, when
     `content` is True, or None and the profile's model says `apply_by_default`; a profile without
     one (every profile before issue 32) is left exactly as it was.
@@ -229,23 +231,24 @@ def content_stage(linear, conditions, profile, content: bool | None, colour: str
     the image's `content.mean_grid` decoded on its own). The 'scenes' family before such a stage
     (without `highlight_safe`, whose easing is not linear) is split (`content.scenes_split`): its
     gains go into the matrix and its factor per pixel into `conditions["content_tone"]`, which the
-    mosaic takes (`render_mosaic`). Otherwise the model transforms the pixels."""
+    mosaic takes (`render_mosaic`). Otherwise the model transforms the pixels. `grid_count`: the
+    grid's pixels inside a zero-padded image (`content.grid_count`)."""
     model = _active_content(profile, content)
     if model is None:
         return linear, conditions
     foldable = colour in MATRIX_ON_LINEAR
     if model.family == "scenes" and foldable and not highlight_safe and conditions.get("content_draw") is not None:
         matrix, tone = _content.scenes_split(model, conditions["content_draw"],
-                                             _content.mean_grid(linear) if grid is None else grid())
+                                             _content.mean_grid(linear) if grid is None else grid(), grid_count)
         return linear, {**conditions, "srgb_to_wb_camera": conditions["srgb_to_wb_camera"] @ matrix,
                         "content_tone": tone}
     matrix = _content_matrix(model, linear, grid)
     if matrix is None or not foldable:
-        return _content_pixels(model, linear, grid, conditions.get("content_draw")), conditions
+        return _content_pixels(model, linear, grid, conditions.get("content_draw"), grid_count), conditions
     return linear, {**conditions, "srgb_to_wb_camera": conditions["srgb_to_wb_camera"] @ matrix}
 
 
-def adapted_scene(linear, profile, content: bool | None = None, grid=None, draw=None):
+def adapted_scene(linear, profile, content: bool | None = None, grid=None, draw=None, grid_count=None):
     """The scene as the camera model sees it: linear sRGB (H, W, 3) after the content model
     that `content_stage` applies (the same model, the same matrix), or `linear` itself when none
     applies. An ISP's consistent target: the mosaic is this scene times the colour stage's
@@ -255,7 +258,7 @@ def adapted_scene(linear, profile, content: bool | None = None, grid=None, draw=
         return linear
     matrix = _content_matrix(model, linear, grid)
     if matrix is None:
-        return _content_pixels(model, linear, grid, draw)
+        return _content_pixels(model, linear, grid, draw, grid_count)
     return jnp.einsum("ij,...j->...i", matrix, linear)
 
 

@@ -174,15 +174,16 @@ def as_matrix(model: ContentModel, linear=None) -> Float[Array, "3 3"] | None:
     return s * jnp.eye(3, dtype=jnp.float32) + (1.0 - s) * jnp.ones((3, 1), jnp.float32) * weights[None, :]
 
 
-def scenes_split(model: ContentModel, draw, grid):
+def scenes_split(model: ContentModel, draw, grid, count=None):
     """A 'scenes' model on one image as x' = f(x) A x: A (3, 3) the diagonal of the cast's gains
     and `tone`, the (peak, power) of the scalar f per pixel (`pixel_factor`), both found on the
     image's `mean_grid` (`scenes.scene_parameters`). A colour stage that is a matrix M on linear
     sRGB takes M A, and its mosaic the factor f of the image's pixels: `apply`'s result to float
-    rounding, with no pass over the (H, W, 3) image."""
+    rounding, with no pass over the (H, W, 3) image. `count`: the grid's pixels that belong to a
+    zero-padded image (`grid_count`)."""
     from g2r_jax.content.scenes import scene_parameters
 
-    peak, power, gains = scene_parameters(model, draw, jnp.asarray(grid, jnp.float32), _gains_toward)
+    peak, power, gains = scene_parameters(model, draw, jnp.asarray(grid, jnp.float32), _gains_toward, count)
     return jnp.diag(gains.reshape(3)), (peak, power)
 
 
@@ -194,13 +195,15 @@ def pixel_factor(linear, tone):
 
 
 def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"], draw=None,
-          grid=None) -> Float[Array, "*batch H W 3"]:
+          grid=None, grid_count=None) -> Float[Array, "*batch H W 3"]:
     """The content transform of one image (H, W, 3) or a batch (..., H, W, 3) in linear sRGB
     (values >= 0). The identity model (and s = 1, p = 1) returns its input bit for bit; 'chroma'
     is one element-wise pass; 'chroma_tone' computes each image's peak and the power; 'cast' each
     image's mean colour and a gain per channel; 'scenes' (`scenes`) needs `draw` (...,), each
     image's uniform draw in [0, 1) that picks its scene, and takes its parameters from `grid`
-    (the images' `mean_grid`, decoded apart by the pipeline; default: taken from `linear`).
+    (the images' `mean_grid`, decoded apart by the pipeline; default: taken from `linear`) and,
+    for an image zero-padded at its bottom and right, `grid_count`, how many of the grid's pixels
+    belong to it (`grid_count`), so that the padding does not change its scene's parameters.
 
     **Returns:** float32, same shape, >= 0, each image's peak unchanged by the tone power."""
     x = jnp.asarray(linear, jnp.float32)
@@ -212,7 +215,7 @@ def apply(model: ContentModel, linear: Float[Array, "*batch H W 3"], draw=None,
         from g2r_jax.content.scenes import apply_scenes
 
         grid = mean_grid(x) if grid is None else jnp.asarray(grid, jnp.float32)
-        return apply_scenes(model, x, draw, grid, _gains_toward)
+        return apply_scenes(model, x, draw, grid, _gains_toward, grid_count)
     if model.family == "cast":
         return x * _cast_gains(x, model)
     luminance = _luminance(x)
@@ -239,6 +242,14 @@ def mean_grid(x):
     (docs/pages/validation/content_model.md)."""
     step = max(1, min(x.shape[-3], x.shape[-2]) // MEAN_GRID)
     return x[..., ::step, ::step, :]
+
+
+def grid_count(shape, valid_shape):
+    """How many pixels of the `mean_grid` of an image of `shape` (..., H, W, C) belong to its top-left
+    `valid_shape` (h, w) (traced allowed): ceil(h / k) ceil(w / k), k the grid's step."""
+    step = max(1, min(shape[-3], shape[-2]) // MEAN_GRID)
+    h, w = valid_shape[..., 0], valid_shape[..., 1]
+    return ((h + step - 1) // step) * ((w + step - 1) // step)
 
 
 _LUMINANCE_2_15 = np.round(np.asarray(LUMINANCE) * 2 ** 15).astype(np.int32)   # sums to 2^15

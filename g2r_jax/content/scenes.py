@@ -102,23 +102,26 @@ def _peak_luminance(grid):
     return jnp.where(peak > 0, peak, 1.0)[..., None, None, None]
 
 
-def tone_power(grid, brightness, target):
+def tone_power(grid, brightness, target, count=None):
     """The power q (...,) that takes the brightness of the toned grid (..., h, w, 3), its cast
     then taken to `target` (..., 3) by the 'cast' gains, to `brightness` (...,): by bisection in
     log q over `POWER_RANGE`; a target out of reach is taken as `REACH` above the darkest brightness
     the range can give (the smallest power that comes that near it). With the gains g_c = Y_m t_c / m_c the
     mean luminance is Y_m (t has luminance 1), so the brightness is 1 / max_c (t_c M_c / m_c), M_c
-    and m_c the toned grid's largest and mean value in channel c: no gains applied per step."""
+    and m_c the toned grid's largest and mean value in channel c: no gains applied per step. `count`: how many of
+    the grid's pixels belong to the image when it is zero-padded (the means are sums over them;
+    zeros change neither the sums nor the maxima), all of them by default."""
     peak = _peak_luminance(grid)
     low = jnp.full(jnp.shape(brightness), np.log(POWER_RANGE[0]), jnp.float32)
     high = jnp.full(jnp.shape(brightness), np.log(POWER_RANGE[1]), jnp.float32)
     # the log of each grid pixel's luminance over the knee, taken once: each step then takes one exp
     log_above = jnp.log(jnp.maximum(_luminance(grid) / (KNEE * peak[..., 0]), 1.0))
     target = jnp.asarray(target, jnp.float32)
+    pixels = jnp.float32(grid.shape[-3] * grid.shape[-2]) if count is None else jnp.asarray(count, jnp.float32)[..., None]
 
     def reached(log_power):
         toned = grid * jnp.exp((jnp.exp(log_power)[..., None, None] - 1.0) * log_above)[..., None]
-        mean = jnp.mean(toned, axis=(-3, -2))
+        mean = jnp.sum(toned, axis=(-3, -2)) / pixels
         top = jnp.max(toned, axis=(-3, -2))
         ratio = jnp.max(target * top / jnp.where(mean > 0, mean, 1.0), axis=-1)
         return 1.0 / jnp.where(ratio > 0, ratio, 1.0)
@@ -144,24 +147,24 @@ def drawn_row(model, draw):
     return jnp.clip(jnp.floor(jnp.asarray(draw, jnp.float32) * size).astype(jnp.int32), 0, size - 1)
 
 
-def scene_parameters(model, draw, grid, cast_gains):
+def scene_parameters(model, draw, grid, cast_gains, count=None):
     """(peak, power, gains) of the 'scenes' transform of images with draws (...,) and their mean
     grids (..., h, w, 3) (`model.mean_grid`): the frame's peak luminance and power q, shaped
     (..., 1, 1, 1), and the cast's gains (..., 1, 1, 3); `cast_gains(grid, target)` gives the
-    'cast' family's gains toward targets (..., 3). The power is found with the gains applied, so
+    'cast' family's gains toward targets (..., 3); `count` as `tone_power`'s. The power is found with the gains applied, so
     that the toned frame's brightness is the scene's; the gains on the toned grid, so that its
     grey-world cast is the scene's exactly."""
     row = drawn_row(model, draw)
     target = jnp.asarray(model.scene_casts, jnp.float32)[row]
-    power = tone_power(grid, jnp.asarray(model.scene_brightness, jnp.float32)[row], target)[..., None, None, None]
+    power = tone_power(grid, jnp.asarray(model.scene_brightness, jnp.float32)[row], target, count)[..., None, None, None]
     peak = _peak_luminance(grid)
     return peak, power, cast_gains(_toned(grid, peak, power), target)
 
 
-def apply_scenes(model, x, draw, grid, cast_gains):
+def apply_scenes(model, x, draw, grid, cast_gains, count=None):
     """The 'scenes' transform of images x (..., H, W, 3) (`scene_parameters`): the power first,
     then the gains. The transform is a scalar per pixel (`tone_factor`, a function of the pixel's
     luminance) times a diagonal matrix per image, so a linear colour stage may take the gains into
     its matrix and the factor onto its mosaic (`pipeline.content_stage`)."""
-    peak, power, gains = scene_parameters(model, draw, grid, cast_gains)
+    peak, power, gains = scene_parameters(model, draw, grid, cast_gains, count)
     return _toned(x, peak, power) * gains
