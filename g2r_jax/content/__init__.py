@@ -13,9 +13,7 @@ illuminants only).
 from g2r_jax.content.fitting import fit_content_model, prior_cast_model, prior_scenes_model
 from g2r_jax.content.from_files import content_model_from_files, mosaic_thumbnail
 from g2r_jax.content.model import (CAST_KEPT, FAMILIES, ContentModel, apply, as_cast, as_matrix, content_model, describe,
-                                   grid_count, identity, mean_grid, pixel_factor,
-                                   scenes_split,
-                                   with_default)
+                                   grid_count, identity, mean_grid, pixel_factor, scenes_split, with_default)
 from g2r_jax.content.real_images import (camera_rgb_to_linear_srgb, srgb_to_camera_matrices,
                                        srgb_to_white_balanced_camera, white_balanced_camera_rgb)
 from g2r_jax.content.scene_statistics import NAMES, ContentStatistics, statistics
@@ -23,6 +21,7 @@ from g2r_jax.content.serialise import content_from_dict, content_to_dict
 
 __all__ = ["CAST_KEPT", "FAMILIES", "NAMES", "ContentModel", "ContentStatistics", "apply", "as_cast", "as_matrix",
            "camera_rgb_to_linear_srgb", "content_from_dict", "content_model", "content_model_from_files",
-           "content_to_dict", "describe", "fit_content_model", "grid_count", "identity", "mean_grid", "mosaic_thumbnail", "pixel_factor", "scenes_split", "prior_cast_model", "prior_scenes_model",
+           "content_to_dict", "describe", "fit_content_model", "grid_count", "identity", "mean_grid",
+           "mosaic_thumbnail", "pixel_factor", "prior_cast_model", "prior_scenes_model", "scenes_split",
            "srgb_to_camera_matrices", "srgb_to_white_balanced_camera", "statistics", "white_balanced_camera_rgb",
            "with_default"]

@@ -105,19 +105,21 @@ def _peak_luminance(grid):
 def tone_power(grid, brightness, target, count=None):
     """The power q (...,) that takes the brightness of the toned grid (..., h, w, 3), its cast
     then taken to `target` (..., 3) by the 'cast' gains, to `brightness` (...,): by bisection in
-    log q over `POWER_RANGE`; a target out of reach is taken as `REACH` above the darkest brightness
-    the range can give (the smallest power that comes that near it). With the gains g_c = Y_m t_c / m_c the
-    mean luminance is Y_m (t has luminance 1), so the brightness is 1 / max_c (t_c M_c / m_c), M_c
-    and m_c the toned grid's largest and mean value in channel c: no gains applied per step. `count`: how many of
-    the grid's pixels belong to the image when it is zero-padded (the means are sums over them;
-    zeros change neither the sums nor the maxima), all of them by default."""
+    log q over `POWER_RANGE`; a target out of reach is taken as `REACH` above the darkest
+    brightness the range can give (the smallest power that comes that near it). With the gains
+    g_c = Y_m t_c / m_c the mean luminance is Y_m (t has luminance 1), so the brightness is
+    1 / max_c (t_c M_c / m_c), M_c and m_c the toned grid's largest and mean value in channel c:
+    no gains applied per step. `count`: how many of the grid's pixels belong to the image when it
+    is zero-padded (the means are sums over them; zeros change neither the sums nor the maxima),
+    all of them by default."""
     peak = _peak_luminance(grid)
     low = jnp.full(jnp.shape(brightness), np.log(POWER_RANGE[0]), jnp.float32)
     high = jnp.full(jnp.shape(brightness), np.log(POWER_RANGE[1]), jnp.float32)
     # the log of each grid pixel's luminance over the knee, taken once: each step then takes one exp
     log_above = jnp.log(jnp.maximum(_luminance(grid) / (KNEE * peak[..., 0]), 1.0))
     target = jnp.asarray(target, jnp.float32)
-    pixels = jnp.float32(grid.shape[-3] * grid.shape[-2]) if count is None else jnp.asarray(count, jnp.float32)[..., None]
+    pixels = (jnp.float32(grid.shape[-3] * grid.shape[-2]) if count is None
+              else jnp.asarray(count, jnp.float32)[..., None])
 
     def reached(log_power):
         toned = grid * jnp.exp((jnp.exp(log_power)[..., None, None] - 1.0) * log_above)[..., None]
@@ -151,12 +153,13 @@ def scene_parameters(model, draw, grid, cast_gains, count=None):
     """(peak, power, gains) of the 'scenes' transform of images with draws (...,) and their mean
     grids (..., h, w, 3) (`model.mean_grid`): the frame's peak luminance and power q, shaped
     (..., 1, 1, 1), and the cast's gains (..., 1, 1, 3); `cast_gains(grid, target)` gives the
-    'cast' family's gains toward targets (..., 3); `count` as `tone_power`'s. The power is found with the gains applied, so
-    that the toned frame's brightness is the scene's; the gains on the toned grid, so that its
-    grey-world cast is the scene's exactly."""
+    'cast' family's gains toward targets (..., 3); `count` as `tone_power`'s. The power is found
+    with the gains applied, so that the toned frame's brightness is the scene's; the gains on the
+    toned grid, so that its grey-world cast is the scene's exactly."""
     row = drawn_row(model, draw)
     target = jnp.asarray(model.scene_casts, jnp.float32)[row]
-    power = tone_power(grid, jnp.asarray(model.scene_brightness, jnp.float32)[row], target, count)[..., None, None, None]
+    brightness = jnp.asarray(model.scene_brightness, jnp.float32)[row]
+    power = tone_power(grid, brightness, target, count)[..., None, None, None]
     peak = _peak_luminance(grid)
     return peak, power, cast_gains(_toned(grid, peak, power), target)
 
