@@ -117,7 +117,9 @@ def describe(model: ContentModel) -> str:
     if model.family == "scenes":
         brightness = np.asarray(model.scene_brightness)
         count = int(dict(model.target).get("scenes", len(brightness)))
-        scenes = "scenes drawn from the prior of real scenes" if dict(model.target).get("prior_draws") else "real scenes"
+        plural = "" if count == 1 else "s"
+        scenes = (f"scene{plural} drawn from the prior of real scenes" if dict(model.target).get("prior_draws")
+                  else f"real scene{plural}")
         prior_scenes = int(dict(model.target).get("prior_scenes", 0))
         if prior_scenes:
             from g2r_jax.content.scenes import table_rows
