@@ -180,13 +180,18 @@ def prior_cast_model(colour_model, real_medians: dict | None = None, source: str
     scenes' median cast (`prior.REAL_SCENES`, or `real_medians`, a dict with `cast_red` and
     `cast_blue` from `source`, e.g. `prior.real_scenes_without(data, camera)`), carried to linear
     sRGB through `colour_model` (`DngColourModel`) at D65 (CIE 15:2004 xy 0.3127, 0.3290)."""
+    return _cast_model(real_medians, _d65_to_camera(colour_model), source or "given medians")
+
+
+def _d65_to_camera(colour_model) -> np.ndarray:
+    """Linear sRGB -> the camera's white-balanced RGB at D65 (CIE 15:2004 xy 0.3127, 0.3290)."""
     import jax.numpy as jnp
 
     from g2r_jax.colour.dng_model import xy_to_camera_neutral
     from g2r_jax.content.real_images import srgb_to_camera_matrices
 
     neutral = np.asarray(xy_to_camera_neutral(jnp.asarray([0.3127, 0.3290]), colour_model), np.float64)
-    return _cast_model(real_medians, srgb_to_camera_matrices(neutral[None], colour_model)[0], source or "given medians")
+    return srgb_to_camera_matrices(neutral[None], colour_model)[0]
 
 
 def prior_scenes_model(colour_model, real_medians: dict | None = None, covariance=None, source: str = "",
@@ -199,18 +204,13 @@ def prior_scenes_model(colour_model, real_medians: dict | None = None, covarianc
     the table's medians are the prior's, so its median cast (`as_cast`) is `prior_cast_model`'s.
     Measured against `prior_cast_model` on the NUS cameras with the camera under test left out of
     both priors: docs/pages/validation/content_model.md, finding 5."""
-    import jax.numpy as jnp
-
-    from g2r_jax.colour.dng_model import xy_to_camera_neutral
-    from g2r_jax.content.real_images import srgb_to_camera_matrices
     from g2r_jax.content.scenes import TABLE_SIZE
 
     medians = dict(_prior.REAL_SCENES["medians"] if real_medians is None else real_medians)
     drawn = prior_scene_draws(TABLE_SIZE, medians, covariance, seed)
     values = {name: np.full(TABLE_SIZE, float(medians.get(name, np.nan))) for name in NAMES}
     values.update(cast_red=drawn[:, 0], cast_blue=drawn[:, 1], brightness=drawn[:, 2])
-    neutral = np.asarray(xy_to_camera_neutral(jnp.asarray([0.3127, 0.3290]), colour_model), np.float64)
-    to_camera = srgb_to_camera_matrices(neutral[None], colour_model)[0]
+    to_camera = _d65_to_camera(colour_model)
     drawn_scenes = ContentStatistics(values=values, source=source or "the prior of real scenes")
     model = scenes_model(drawn_scenes, to_camera, "the prior of real scenes", prior_medians=medians, prior_scenes=0)
     return dataclasses.replace(model, target=tuple(sorted({**dict(model.target), "prior_draws": 1.0}.items())))
