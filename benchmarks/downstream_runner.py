@@ -17,6 +17,7 @@ hold.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import sys
 import time
@@ -97,7 +98,9 @@ def run_cameras(benchmark: CameraBenchmark, jobs: dict, *, json_path: Optional[P
 
 def _results(run: Callable, jobs: list, processes: int) -> Iterator:
     """The results of `run` on `jobs`, in their order, as each finishes (`processes` > 1: in a
-    pool of that many spawned processes)."""
+    pool of that many spawned processes). A process that ran a camera drops its compiled programs
+    when they crowd the kernel's mapping limit (`g2r_jax.runtime.mapping_limit`)."""
+    run = functools.partial(_run_and_release, run)
     if processes <= 1 or len(jobs) <= 1:
         yield from map(run, jobs)
         return
@@ -105,6 +108,14 @@ def _results(run: Callable, jobs: list, processes: int) -> Iterator:
 
     with multiprocessing.get_context("spawn").Pool(processes) as pool:
         yield from pool.imap(run, jobs)
+
+
+def _run_and_release(run: Callable, job):
+    from g2r_jax.runtime.mapping_limit import release_if_crowded
+
+    result = run(job)
+    release_if_crowded()
+    return result
 
 
 def write_outputs(benchmark: CameraBenchmark, entries: dict, lines: list, seconds: float,

@@ -360,9 +360,6 @@ def test_arguments_are_checked_before_jax_is_imported():
     assert result.stdout.split() == ["2", "False"] and "--burst /nonexistent" in result.stderr
 
 
-# slow (out of the default run) since 2026-12-07: in the full parallel run its worker crashed inside JAX's
-# compilation cache (get/put_executable_and_time) on four clean-clone runs; it passes alone. Under investigation.
-@pytest.mark.slow
 def test_the_isp_task_runs_on_the_real_dngs_with_its_rows_sentence_and_figure(camera_folders, tmp_path, capsys,
                                                                              monkeypatch):
     """`g2r-downstream --tasks isp`: the neural ISP on the same real DNGs (a short training here),
