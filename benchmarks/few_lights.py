@@ -14,7 +14,8 @@ same scenes, so `pooled` may know the test camera's scenes' lights from its sibl
 is `auto` with all nine NUS cameras left out of its pool (`choose_illuminant_model(exclude=)`): the
 product's default measured leave-one-dataset-out (below 10 lights the Gehler-Shi lights blended
 with the camera's; from 10 the kernel with the cross-camera prior, which holds no NUS light, so
-there `auto-gs` is `auto` and trains once). Each count below all is
+there `auto-gs` is `auto` and trains once); `near:H`, `wide:H` and `n0:K` are `--energy-lodo`'s
+few-light variants (`_lodo_variant`) with all nine NUS cameras out of the pool. Each count below all is
 drawn `--draws` times per fold (a different random subset of the fold's training files each).
 Content: `cg` (the CARLA frames, the paper's setting), `cg-cast` (the same through the `cast`
 content model, each frame's cast taken to the NUS prior's with the camera under test left out,
@@ -88,9 +89,20 @@ def model_for(name, camera, profile, lights):
                                                 base=_POOLED_BASES[(camera, name)])
     elif name == "auto-gs":
         model = choice.choose_illuminant_model(points, profile.colour, "auto", exclude=CAMERAS).model
+    elif _is_variant(name):    # the few-light variants of --energy-lodo, every NUS camera out of the pool
+        model = _lodo_variant(name, points, profile.colour, CAMERAS)
     else:
         model = choice.choose_illuminant_model(points, profile.colour, name).model
     return replace(profile, illuminants=model)
+
+
+def _is_variant(name: str) -> bool:
+    """Whether `name` is one of `_lodo_variant`'s few-light variants ('n0:K', 'near:H', 'wide:H')."""
+    kind, colon, value = name.partition(":")
+    try:
+        return bool(colon) and kind in ("n0", "near", "wide") and float(value) > 0
+    except ValueError:
+        return False
 
 
 def fingerprint(profile) -> str:
@@ -256,7 +268,8 @@ def curve(path: Path, content: str, estimator: str) -> str:
     records = [json.loads(line) for line in path.read_text().splitlines()]
     records = [r for r in records if r["content"] == content and r["estimator"] == estimator]
     counts = [c for c in ("0", "1", "3", "5", "10", "25", "75", "all") if any(str(r["lights"]) == c for r in records)]
-    models = [m for m in ("shipped", "upi", *MODELS) if any(r["model"] == m for r in records)]
+    variants = sorted({r["model"] for r in records if _is_variant(r["model"])})
+    models = [m for m in ("shipped", "upi", *MODELS, *variants) if any(r["model"] == m for r in records)]
     cells = {}
     for r in records:
         cells.setdefault((r["model"], str(r["lights"]), r["camera"]), []).append(r["mean"])
@@ -401,7 +414,7 @@ def unknown_names(args) -> str:
     models = tuple(dict.fromkeys(("shipped", "upi", *MODELS, *KINDS)))
     for option, given, known in (("--content", args.content, CONTENTS), ("--estimators", args.estimators, ESTIMATORS),
                                  ("--models", args.models, models)):
-        unknown = [v for v in given.split(",") if v not in known]
+        unknown = [v for v in given.split(",") if v not in known and not (option == "--models" and _is_variant(v))]
         if unknown:
             return f"unknown {option} {', '.join(unknown)}; known: {', '.join(known)}"
     return ""

@@ -40,9 +40,26 @@ def test_the_files_of_a_count_are_drawn_once_for_lights_and_content():
         np.testing.assert_array_equal(everything, np.arange(40))
 
 
+def test_the_few_light_variants_are_models_and_malformed_ones_are_not():
+    assert all(fl._is_variant(v) for v in ("near:24", "wide:2", "n0:20", "near:0.5"))
+    assert not any(fl._is_variant(v) for v in ("near", "near:", "near:x", "wide:-1", "far:2", "auto-gs"))
+
+
+@pytest.mark.slow
+def test_a_few_light_variant_row_is_the_energy_lodo_model_with_every_nus_camera_out():
+    profile = fl.camera_profile(CAMERA)
+    row = fl.model_for("near:24", CAMERA, profile, LIGHTS[:5])
+    from g2r_jax.illuminants.distributions import neutral_to_chromaticity
+
+    variant = fl._lodo_variant("near:24", neutral_to_chromaticity(LIGHTS[:5]), profile.colour, fl.CAMERAS)
+    np.testing.assert_allclose(np.asarray(row.illuminants.means), np.asarray(variant.means), rtol=1e-6)
+    assert fl.fingerprint(row) != fl.fingerprint(fl.model_for("auto-gs", CAMERA, profile, LIGHTS[:5]))
+
+
 def test_unknown_names_are_refused_before_any_work(capsys, tmp_path):
     out = tmp_path / "x.jsonl"
-    for option, value in (("--content", "cg,cg-scene"), ("--estimators", "cnn,histogramm"), ("--models", "auto-gz")):
+    for option, value in (("--content", "cg,cg-scene"), ("--estimators", "cnn,histogramm"), ("--models", "auto-gz"),
+                          ("--models", "near:x")):
         assert fl.main([option, value, "--cameras", CAMERA, "--out", str(out)]) == 2
         assert f"unknown {option} {value.split(',')[-1]};" in capsys.readouterr().err
     assert not out.exists()
