@@ -102,6 +102,7 @@ def _peak_luminance(grid):
     return jnp.where(peak > 0, peak, 1.0)[..., None, None, None]
 
 
+@jax.jit
 def tone_power(grid, brightness, target, count=None):
     """The power q (...,) that takes the brightness of the toned grid (..., h, w, 3), its cast
     then taken to `target` (..., 3) by the 'cast' gains, to `brightness` (...,): by bisection in
@@ -111,7 +112,7 @@ def tone_power(grid, brightness, target, count=None):
     1 / max_c (t_c M_c / m_c), M_c and m_c the toned grid's largest and mean value in channel c:
     no gains applied per step. `count`: how many of the grid's pixels belong to the image when it
     is zero-padded (the means are sums over them; zeros change neither the sums nor the maxima),
-    all of them by default."""
+    all of them by default. Jitted: outside `jax.jit` its loop compiles once per shape."""
     peak = _peak_luminance(grid)
     low = jnp.full(jnp.shape(brightness), np.log(POWER_RANGE[0]), jnp.float32)
     high = jnp.full(jnp.shape(brightness), np.log(POWER_RANGE[1]), jnp.float32)

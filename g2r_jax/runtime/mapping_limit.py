@@ -1,8 +1,8 @@
 """Compiled programs kept within the kernel's limit on a process's memory mappings.
 
 XLA's CPU backend links every compiled program into memory of its own, a few mappings per
-program (JAX 0.10 on Linux: an eager `unprocess` of a new image shape compiles about 180 small
-programs and adds about 900 mappings; the jitted conversion is one program). Linux refuses a
+program (JAX 0.10 on Linux: an eager `unprocess` of a new image shape compiles about 170 small
+programs and adds about 300 mappings, the jitted one about 770). Linux refuses a
 process more than `vm.max_map_count` mappings (65530 by default). Past it LLVM cannot allocate a
 new program's sections: the process aborts in `RuntimeDyldImpl::emitSection`, or segfaults while
 reading a program from the persistent compilation cache. A process that compiles programs for many
