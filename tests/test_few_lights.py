@@ -47,10 +47,10 @@ def test_the_few_light_variants_are_models_and_malformed_ones_are_not():
 
 @pytest.mark.slow
 def test_a_few_light_variant_row_is_the_energy_lodo_model_with_every_nus_camera_out():
-    profile = fl.camera_profile(CAMERA)
-    row = fl.model_for("near:24", CAMERA, profile, LIGHTS[:5])
     from g2r_jax.illuminants.distributions import neutral_to_chromaticity
 
+    profile = fl.camera_profile(CAMERA)
+    row = fl.model_for("near:24", CAMERA, profile, LIGHTS[:5])
     variant = fl._lodo_variant("near:24", neutral_to_chromaticity(LIGHTS[:5]), profile.colour, fl.CAMERAS)
     np.testing.assert_allclose(np.asarray(row.illuminants.means), np.asarray(variant.means), rtol=1e-6)
     assert fl.fingerprint(row) != fl.fingerprint(fl.model_for("auto-gs", CAMERA, profile, LIGHTS[:5]))
