@@ -161,6 +161,24 @@ def _ratios(value, rows) -> str:
     return " | ".join(cells)
 
 
+def parts_table(document) -> str:
+    """Markdown: per row, the mean over cameras of ΔE2000 and of what is left after each test
+    image's best gains and best 3 x 3 matrix (`isp.error_parts`; runs that stored them)."""
+    from g2r_jax.downstream.isp.task import ROWS as NAMES
+
+    held = {c: parts["all"]["summary"] for c, parts in document.items()}
+    out = ["| training set | cameras | ΔE2000 | after best gains | after best 3 x 3 | white balance's share |",
+           "|---|---|---|---|---|---|"]
+    for row in _rows(document):
+        cameras = [c for c, s in held.items() if f"{row}/delta_e_balance" in s]
+        if not cameras:
+            continue
+        e, g, m = (float(np.mean([held[c][f"{row}/{k}"]["mean"] for c in cameras]))
+                   for k in ("delta_e", "delta_e_balance", "delta_e_colour"))
+        out.append(f"| {NAMES.get(row, row)} (`{row}`) | {len(cameras)} | {e:.2f} | {g:.2f} | {m:.2f} | {(e - g) / e:.0%} |")
+    return "\n".join(out)
+
+
 def curve_table(document, lights) -> str:
     """Markdown: the few-DNG curve, PSNR / ΔE2000 of g2r_jax by the number of DNGs its lights come
     from (mean over seeds), per camera and the mean of the cameras."""
@@ -253,7 +271,7 @@ def camera_lines(args, name: str, results) -> list:
         args.figures.mkdir(parents=True, exist_ok=True)
         result.figure(args.figures / f"isp_{name}.png")
     return [f"## {name} ({result.images} real images; {result.seconds:.0f} s)", "", result.table(), "",
-            result.sentence(), ""]
+            result.sentence(), "", "Where the colour error lies (`error_parts`):", "", result.parts_table(), ""]
 
 
 def _closing(args, document, total) -> list:
@@ -264,6 +282,9 @@ def _closing(args, document, total) -> list:
         lines += ["## The issue's targets", "", targets_table(document), ""]
     else:
         lines += ["(the issue's targets need the rows fitted, upi and real: not all ran)", ""]
+    parts = parts_table(document)
+    if parts.count("\n") > 1:
+        lines += ["## Where the colour error lies (mean of the cameras)", "", parts, ""]
     if args.lights:
         lines += ["## Number of DNGs (PSNR dB / ΔE2000)", "", curve_table(document, args.lights), ""]
     return lines + [f"Total {total / 60:.1f} min; UNet width {args.width}, {args.steps} steps of {args.batch}, "

@@ -57,6 +57,7 @@ from g2r_jax.downstream.base import training_sets as _sets
 from g2r_jax.downstream.base.progress import advance
 from g2r_jax.downstream.base.real_sets import RealSet
 from g2r_jax.downstream.isp import pairs as _pairs
+from g2r_jax.downstream.isp.error_parts import PARTS
 from g2r_jax.downstream.isp.net import IspTraining
 
 ROWS = {
@@ -75,6 +76,7 @@ PRETRAINED_ON = {"real_pretrained": ("fitted", "real")}   # row: (the row it sta
 DEFAULT_ROWS = tuple(r for r in ROWS if r not in OPTIONAL_ROWS)
 METRICS = {"psnr": "PSNR (dB)", "ssim": "SSIM", "delta_e": "ΔE2000"}
 HIGHER_IS_BETTER = {"psnr": True, "ssim": True, "delta_e": False}
+MEASURES = {**METRICS, **PARTS}    # the metrics and the diagnoses of where the colour error lies (`error_parts`)
 EXAMPLES = 3   # real test files kept for the figure (first seed)
 
 
@@ -117,7 +119,7 @@ class IspResult:
                 "n": self.n, "size": self.size, "images": self.images, "seconds": self.seconds,
                 "notes": list(self.notes), "skipped": [{"path": p, "reason": r} for p, r in self.skipped],
                 "training": dict(self.training),
-                "summary": {f"{r}/{m}": self.summary(r, m) for r in self.rows for m in METRICS},
+                "summary": {f"{r}/{m}": self.summary(r, m) for r in self.rows for m in MEASURES if (r, m) in self.metrics},
                 "summary_unmasked": {f"{r}/{m}": float(np.mean(np.concatenate(self.unmasked[(r, m)])))
                                      for r in self.rows for m in METRICS if self.unmasked},
                 "sentence": self.sentence()}
@@ -131,6 +133,19 @@ class IspResult:
             out.append(f"| {ROWS[row]} (`{row}`) | {s['psnr']['mean']:.2f} | {s['ssim']['mean']:.3f} | "
                        f"{s['delta_e']['mean']:.2f} | {s['psnr']['seed_min']:.2f}-{s['psnr']['seed_max']:.2f} | "
                        f"{s['delta_e']['seed_min']:.2f}-{s['delta_e']['seed_max']:.2f} |")
+        return "\n".join(out)
+
+    def parts_table(self) -> str:
+        """Markdown: per row, ΔE2000 and what is left of it after each test image's best white
+        balance and best 3 x 3 colour correction (`error_parts`), and the white balance's share.
+        **Returns:** the table's text."""
+        out = ["| training set | ΔE2000 | after best gains | after best 3 x 3 | white balance's share |",
+               "|---|---|---|---|---|"]
+        for row in self.rows:
+            if (row, "delta_e_balance") not in self.metrics:
+                continue
+            e, g, c = (self.summary(row, m)["mean"] for m in ("delta_e", "delta_e_balance", "delta_e_colour"))
+            out.append(f"| {ROWS[row]} (`{row}`) | {e:.2f} | {g:.2f} | {c:.2f} | {(e - g) / max(e, 1e-12):.0%} |")
         return "\n".join(out)
 
     def compare(self, a: str, b: str, metric: str) -> tuple:
@@ -407,10 +422,12 @@ def _outcome(model, pairs, test, shown) -> dict:
     """What the run keeps of one trained UNet: its measures on the test fold (masked, and over every
     pixel when there are masks) and its predictions of the figure's files in that fold."""
     from g2r_jax.downstream.isp import net
+    from g2r_jax.downstream.isp.error_parts import error_parts
 
     predicted = net.predict(model, pairs[0][test])
     mask = pairs[2][test] if len(pairs) > 2 else None
     out = {f"masked_{k}": v for k, v in net.measure(predicted, pairs[1][test], mask).items()}
+    out.update({f"masked_{k}": v for k, v in error_parts(predicted, pairs[1][test], mask).items()})
     if mask is not None:
         out.update({f"all_{k}": v for k, v in net.measure(predicted, pairs[1][test]).items()})
     slots = [k for k, index in enumerate(shown) if index in test]
@@ -499,8 +516,8 @@ def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEF
     shown = _examples(fold_sets)
     names = [getattr(sources[i], "name", str(sources[i])) for i in shown]
     examples = {"names": names, "target": pairs[1][shown], "predicted": {r: np.zeros_like(pairs[1][shown]) for r in rows}}
-    metrics = {(r, m): [] for r in rows for m in METRICS}
-    unmasked = {key: [] for key in metrics} if test_masks is not None else {}
+    metrics = {(r, m): [] for r in rows for m in MEASURES}
+    unmasked = {(r, m): [] for r in rows for m in METRICS} if test_masks is not None else {}
     unit_key = _unit_keys(pairs, linear, profile, sets.shipped, n=n, size=size, lights=lights, folds=folds,
                           illuminant_model=illuminant_model, single_light=single_light,
                           training=sorted(dataclasses.asdict(training).items()))
@@ -513,9 +530,9 @@ def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEF
                                       lambda row: unit_key(row, test, seed))
             for row in rows:
                 outcome = outcomes[row]
-                for metric in METRICS:
+                for metric in MEASURES:
                     per_fold[(row, metric)].append(outcome[f"masked_{metric}"])
-                    if unmasked:
+                    if unmasked and metric in METRICS:
                         per_fold_unmasked[(row, metric)].append(outcome[f"all_{metric}"])
                 if seed == seeds[0]:
                     for slot, image in zip(outcome["example_slots"], outcome["examples"]):
