@@ -99,7 +99,7 @@ def run_camera(name: str, args, cg, say):
     masks = None if args.no_masks else isp_pairs.thumbnail_masks(real.images)
     training = IspTraining(steps=args.steps, batch=args.batch, width=args.width, learning_rate=args.learning_rate)
     common = dict(seeds=tuple(range(args.seeds)), folds=3, n=args.n, dngs=dngs, shipped=shipped, training=training,
-                  progress=say, masks=masks)
+                  progress=say, masks=masks, texture=not (args.no_texture or args.texture))
     out = {"all": isp.run_isp_task(real, profile, cg, rows=args.rows, **common)}
     for count in args.lights:
         if count not in (0, None):
@@ -249,6 +249,11 @@ def _arguments(argv):
                         help="diagnosis: every g2r_jax pair's level drawn from the real training pairs' (isp_diagnoses)")
     parser.add_argument("--joint-scenes", action="store_true",
                         help="diagnosis: each 'fitted' view takes one training file's cast and its light (isp_diagnoses)")
+    parser.add_argument("--no-texture", action="store_true",
+                        help="the g2r_jax rows' CG views without their files' texture (content.texture): as before issue 49's change")
+    parser.add_argument("--texture", choices=("real", "noise"),
+                        help="diagnosis: every g2r_jax view (and UPI's) times the texture of a real training thumbnail "
+                             "('real') or a draw of their texture's covariance ('noise') (isp_diagnoses)")
     parser.add_argument("--real-fill", choices=("white", "mean"), default="white",
                         help="diagnosis: the thumbnails' missing pixels written as the image's mean colour (isp_diagnoses)")
     parser.add_argument("--figures", type=Path, help="a folder: one PNG of predictions per camera")
@@ -323,6 +328,8 @@ def main(argv=None) -> int:
         isp_diagnoses.metered_exposure()
     if args.joint_scenes:
         isp_diagnoses.joint_scenes()
+    if args.texture:
+        isp_diagnoses.textured(args.texture)
     cg = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))]
     benchmark = runner.CameraBenchmark(
         run=lambda name: run_camera(name, args, cg, runner.say), entry=camera_entry,

@@ -90,11 +90,12 @@ def metered_exposure() -> None:
         self.training_files = train
         return original_build(self, row, train, fold, seed)
 
-    def g2r(self, views, profile, salt, model=None, *, as_given=False, saturated=None):
+    def g2r(self, views, profile, salt, model=None, *, as_given=False, saturated=None, texture=None):
         train = self.training_files
         levels = top_levels(self.pairs[0][train], None if self.masks is None else self.masks[train])
         drawn = np.random.default_rng(salt + 77).choice(levels, len(views))
-        make = lambda v: original_g2r(self, v, profile, salt, model, as_given=as_given, saturated=saturated)
+        make = lambda v: original_g2r(self, v, profile, salt, model, as_given=as_given, saturated=saturated,
+                                      texture=texture)
         return _scaled_to(drawn, make, views, None)
 
     task._RowSets.build, task._RowSets._g2r = build, g2r
@@ -137,3 +138,82 @@ def joint_scenes() -> None:
         return pairs.g2r_pairs(adapted, fitted, 1000 * seed + 10 * fold + 4, neutrals=lights, size=self.size)
 
     task._RowSets.build = build
+
+
+def texture_residuals(thumbnails: np.ndarray, size: int, sigma: float = 1.5) -> np.ndarray:
+    """(N, size, size, 3) the fine texture of real thumbnails: each area-averaged to `size`, its
+    log minus its Gaussian blur (`sigma` pixels) per channel, 0 within a pixel of a missing one."""
+    from scipy.ndimage import binary_dilation, gaussian_filter
+
+    out = np.zeros((len(thumbnails), size, size, 3), np.float32)
+    for i, image in enumerate(np.asarray(thumbnails, np.float32)):
+        small = _area(image, size)
+        missing = binary_dilation(np.any(small <= 1e-4, axis=-1), iterations=1)
+        logs = np.log(np.maximum(small, 0) + 2e-3)
+        logs[missing] = np.log(np.mean(small[~missing], axis=0) + 2e-3) if (~missing).any() else 0.0
+        blurred = np.stack([gaussian_filter(logs[..., c], sigma, mode="reflect") for c in range(3)], -1)
+        out[i] = np.where(missing[..., None], 0.0, np.clip(logs - blurred, -1.5, 1.5))
+    return out
+
+
+def _area(image, size):
+    h = image.shape[0] // size
+    return image.reshape(size, h, size, h, 3).mean((1, 3))
+
+
+def noise_residuals(residuals: np.ndarray, count: int, seed: int, sigma: float = 1.5) -> np.ndarray:
+    """(count, h, w, 3) stationary Gaussian texture with the 3 x 3 covariance of `residuals`' pixels
+    (their channels' log residuals; the pixels outside every texture, 0, left out): white noise,
+    high-passed like `texture_residuals`, each channel scaled to unit sd, then correlated."""
+    from scipy.ndimage import gaussian_filter
+
+    pixels = residuals.reshape(-1, 3)
+    pixels = pixels[np.any(pixels != 0, axis=1)]
+    root = np.linalg.cholesky(np.cov(pixels.T) + 1e-9 * np.eye(3))
+    z = np.random.default_rng(seed).standard_normal((count,) + residuals.shape[1:]).astype(np.float32)
+    z -= np.stack([gaussian_filter(z[..., c], (0, sigma, sigma), mode="wrap") for c in range(3)], -1)
+    z /= z.reshape(-1, 3).std(0)
+    return np.clip(z @ root.T, -1.5, 1.5).astype(np.float32)
+
+
+def textured(kind: str = "real") -> None:
+    """Every g2r_jax row's views times the fine texture of random real training thumbnails
+    ('real': `texture_residuals`, each view one file's, flipped at random; 'noise': `noise_residuals`
+    of the same files' covariance), before they are made RAW; UPI's views too (its sRGB views clipped at 1)."""
+    from g2r_jax.downstream.isp import task
+
+    original_build, original_g2r = task._RowSets.build, task._RowSets._g2r
+
+    def with_texture(self, views, salt):
+        key = ("texture", tuple(self.training_files), views.shape[1])
+        if key not in self.cache:
+            self.cache[key] = texture_residuals(self.real.images[self.training_files], views.shape[1])
+        residuals = self.cache[key]
+        rng = np.random.default_rng(salt + 91)
+        pick = residuals[rng.integers(len(residuals), size=len(views))]
+        flips = rng.random(len(views)) < 0.5
+        pick[flips] = pick[flips][:, :, ::-1]
+        if kind == "noise":
+            pick = noise_residuals(residuals, len(views), salt + 92)
+        return (views * np.exp(pick)).astype(np.float32)
+
+    def build(self, row, train, fold, seed):
+        self.training_files = train
+        if row == "upi":
+            from g2r_jax.downstream.base import training_sets
+            from g2r_jax.downstream.isp import pairs
+
+            views = with_texture(self, self.views(seed), 1000 * seed + 10 * fold + 1)
+            return pairs.upi_pairs(training_sets.linear_to_srgb_views(np.minimum(views, 1.0)), self.profile, seed + 1,
+                                   size=self.size)
+        return original_build(self, row, train, fold, seed)
+
+    def g2r(self, views, profile, salt, model=None, *, as_given=False, saturated=None, texture=None):
+        from g2r_jax.downstream.base.product import adapted_views
+
+        if model is not None:
+            views, model = adapted_views(model, views, salt), None
+        return original_g2r(self, with_texture(self, views, salt), profile, salt, model, as_given=as_given,
+                            saturated=saturated)
+
+    task._RowSets.build, task._RowSets._g2r = build, g2r

@@ -264,8 +264,9 @@ class _RowSets:
     """Builds and caches each row's training pairs for one camera, fold and seed."""
 
     def __init__(self, real: RealSet, pairs: tuple, profile, shipped, cg_linear, *, n, size, view_size,
-                 illuminant_model, single_light, lights, masks=None):
+                 illuminant_model, single_light, lights, masks=None, texture=True):
         self.real, self.pairs, self.profile, self.shipped = real, pairs, profile, shipped
+        self.texture = texture    # the 'fitted' and 'single' rows' views get their files' texture (`content.texture`)
         self.cg, self.n, self.size, self.view_size = cg_linear, n, size, view_size
         self.illuminant_model, self.single_light, self.lights = illuminant_model, single_light, lights
         self.masks = masks        # (N, size, size) of the real pairs: out of the real rows' loss
@@ -317,13 +318,34 @@ class _RowSets:
         self.notes.append(f"{where}: {describe(model)}, fitted to {len(images)} training file(s)' scenes")
         return model
 
-    def _g2r(self, views, profile, salt, model=None, *, as_given: bool = False, saturated=None):
-        """g2r_jax pairs of `views` (through `model` first, when given) with `profile`: as given
-        (its content model applied as it says) or without its content model."""
+    def texture_of(self, images, where: str):
+        """The texture of `images` (`content.texture.fit_texture`), or None when the run adds none."""
+        if not self.texture:
+            return None
+        from g2r_jax.content.texture import fit_texture
+
+        try:
+            model = fit_texture(images, source=where)
+        except ValueError as error:
+            self.notes.append(f"{where}: no texture ({error})")
+            return None
+        self.notes.append(f"g2r_jax rows' texture: the log texture of their files at {model.grid} pixels across "
+                          f"(content.texture), added to every CG view")
+        return model
+
+    def _g2r(self, views, profile, salt, model=None, *, as_given: bool = False, saturated=None, texture=None):
+        """g2r_jax pairs of `views` (through `model` first, when given, then times a draw of
+        `texture`, when given) with `profile`: as given (its content model applied as it says) or
+        without its content model."""
+        import jax
+
+        from g2r_jax.content.texture import add_texture
         from g2r_jax.downstream.base.product import adapted_views
         from g2r_jax.pipeline import without_content
 
         views = views if model is None else adapted_views(model, views, salt)
+        if texture is not None:
+            views = np.asarray(add_texture(texture, views, jax.random.PRNGKey(salt + 91)))
         return _pairs.g2r_pairs(views, profile if as_given else without_content(profile), salt, size=self.size,
                                 saturated=saturated)
 
@@ -344,7 +366,8 @@ class _RowSets:
             profile = fitted_illuminants(self.profile, self.real.illuminants[one], self.single_light)
             model = self.content_model(self.real.images[one], self.real.illuminants[one], seed,
                                        f"one-DNG row, seed {seed}, fold {fold + 1}, file {pick}")
-            return self._g2r(self.views(seed), profile, salt + 3, model)
+            return self._g2r(self.views(seed), profile, salt + 3, model,
+                             texture=self.texture_of(self.real.images[one], f"one training file ({pick})"))
         if row == "real_plus_fitted":
             return _mixed(self.build("real", train, fold, seed), self.build("fitted", train, fold, seed))
         fitted = self.fitted(train, fold, seed)
@@ -352,7 +375,8 @@ class _RowSets:
             def make():
                 model = self.content_model(self.real.images[train], self.real.illuminants[train], seed,
                                            f"content model, seed {seed}, fold {fold + 1}")
-                return self._g2r(self.views(seed), fitted, salt + 4, model)
+                texture = self.texture_of(self.real.images[train], f"{len(train)} training files, fold {fold + 1}")
+                return self._g2r(self.views(seed), fitted, salt + 4, model, texture=texture)
             return self._cached(("fitted pairs", fold, seed), make)
         if row == "fitted_no_content":
             return self._g2r(self.views(seed), fitted, salt + 4)
@@ -470,7 +494,7 @@ def _examples(fold_sets, count: int = EXAMPLES) -> np.ndarray:
 def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEFAULT_ROWS, seeds=(0, 1),
                  folds: int = 3, n: int = 200, size: int = _pairs.WORKING_SIZE, dngs=None, shipped=None,
                  lights: Optional[int] = None, illuminant_model: str = "auto", single_light: str = "auto",
-                 training: IspTraining = IspTraining(), masks=None, cache=None,
+                 training: IspTraining = IspTraining(), masks=None, cache=None, texture: bool = True,
                  progress: Optional[Callable[[str], None]] = None) -> IspResult:
     """Train the ISP UNet on each row's pairs, test it on the real pairs (module docstring).
 
@@ -491,7 +515,9 @@ def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEF
     chart and saturated pixels are out of the real rows' loss and out of every row's measures;
     None for real DNGs, whose clipped pixels are content); `cache`: a `downstream.base.cache.
     DownstreamCache` whose stored outcomes (each network's measures and example images) replace
-    the trainings it holds (None: every UNet is trained); `progress`: a callable taking a line of text, or a
+    the trainings it holds (None: every UNet is trained); `texture`: the 'fitted' and 'single' rows'
+    CG views get the fine texture of their real files (`content.texture`; False: none, as before
+    issue 49's measurement); `progress`: a callable taking a line of text, or a
     `downstream.base.progress.Progress` (advanced by one per UNet: `trainings(...)` of them).
 
     **Returns:** an `IspResult`. **Raises:** ValueError for unknown rows or a set too small for
@@ -511,7 +537,7 @@ def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEF
     linear = cg_images if len(cg_images) and np.asarray(cg_images[0]).dtype == np.float32 else _sets.linear_images(cg_images)
     sets = _RowSets(real, pairs, profile, shipped if shipped is not None else profile, linear, n=n, size=size,
                     view_size=size // 2, illuminant_model=illuminant_model,
-                    single_light=single_light, lights=lights, masks=test_masks)
+                    single_light=single_light, lights=lights, masks=test_masks, texture=texture)
     fold_sets = folds_of(len(real.images), folds, 0, groups=real.groups)
     shown = _examples(fold_sets)
     names = [getattr(sources[i], "name", str(sources[i])) for i in shown]
@@ -519,7 +545,7 @@ def run_isp_task(real: RealSet, profile, cg_images, *, rows: Sequence[str] = DEF
     metrics = {(r, m): [] for r in rows for m in MEASURES}
     unmasked = {(r, m): [] for r in rows for m in METRICS} if test_masks is not None else {}
     unit_key = _unit_keys(pairs, linear, profile, sets.shipped, n=n, size=size, lights=lights, folds=folds,
-                          illuminant_model=illuminant_model, single_light=single_light,
+                          illuminant_model=illuminant_model, single_light=single_light, texture=texture,
                           training=sorted(dataclasses.asdict(training).items()))
     for seed in seeds:
         per_fold = {key: [] for key in metrics}
