@@ -25,6 +25,9 @@ a 'scenes' table drawn from the spread of the other eight cameras' scenes about 
 centred on the prior's medians without the camera); `scenes+prior@K` the files' scenes with K
 of the prior's as pseudo-files (`fitting.scenes_model(prior_scenes=K)`).
 
+Issue 49's: `V+texture`, variant V's views times a draw of the inner files' fine texture at the
+thumbnails' 64 pixels across (`content.texture`; V must come before it in --variants).
+
 Data: ../shared/data/estimation/nus/<camera>.npz and ../shared/data/cg/carla/*.png.
 """
 
@@ -173,6 +176,16 @@ def blended_scenes_model(camera, profile, images, lights, views, prior_scenes: i
                         prior_scenes=prior_scenes, prior_covariance=prior.scene_covariance(DATA, camera), seed=seed)
 
 
+def textured_views(views, thumbnails, seed: int):
+    """`views` times a draw of the thumbnails' texture at their own 64 pixels across (`content.texture`)."""
+    import jax
+
+    from g2r_jax.content.texture import add_texture, fit_texture
+
+    model = fit_texture(thumbnails, grid=thumbnails.shape[1])
+    return np.asarray(add_texture(model, views, jax.random.PRNGKey(seed)))
+
+
 def run(cameras, variants, estimators, seed: int, n: int, files: int | None = None) -> dict:
     """{estimator/variant: {camera: [mean inner-third error per fold, degrees]}}; `files`: the fitted
     families ('cast', 'scenes') see only that many of the inner two thirds' files, drawn at random
@@ -188,7 +201,7 @@ def run(cameras, variants, estimators, seed: int, n: int, files: int | None = No
     views = training_sets.cg_views(linear, n, seed)
     adapted = {name: variant_views(name, views) for name in variants
                if name not in ("cast", "scenes", "prior-cast", "prior-scenes") and not name.startswith("scenes+prior@")
-               and not name.startswith(("draw", "cast+tone", "cast+top"))}
+               and not name.startswith(("draw", "cast+tone", "cast+top")) and not name.endswith("+texture")}
     errors, start = {}, time.perf_counter()
     for camera in cameras:
         real = real_sets.load_nus(NUS / f"{camera}.npz")
@@ -224,6 +237,9 @@ def run(cameras, variants, estimators, seed: int, n: int, files: int | None = No
                 if name.startswith("draw") or name.startswith(("cast+tone", "cast+top")):
                     adapted[name] = drawn_views(name, views, real.images[inner], real.illuminants[inner], profile,
                                                 np.random.default_rng(50_000 + 100 * seed + fold))
+            for name in [v for v in variants if v.endswith("+texture")]:     # issue 49's texture, at the thumbnails' scale
+                adapted[name] = textured_views(adapted[name.removesuffix("+texture")], real.images[scenes_of],
+                                               60_000 + 100 * seed + fold)
             for name in variants:
                 images, labels = training_sets.g2r_set(adapted[name], fitted, 7_000 + 1000 * seed + fold)
                 for estimator in estimators:

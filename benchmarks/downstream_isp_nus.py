@@ -86,6 +86,19 @@ def content_part(part: str) -> None:
     product.candidate_model = variant
 
 
+def inner_set(real):
+    """The real set without the files of its first outer test fold (`measure.folds_of(N, 3, 0)`'s
+    fold 0, the benchmark's own folds): a run on it chooses without ever reading those files."""
+    import dataclasses
+
+    from g2r_jax.measure import folds_of
+
+    kept = np.setdiff1d(np.arange(len(real.images)), folds_of(len(real.images), 3, 0, groups=real.groups)[0])
+    return dataclasses.replace(real, images=real.images[kept], illuminants=real.illuminants[kept],
+                               files=tuple(np.asarray(real.files, object)[kept]) if real.files else (),
+                               groups=None if real.groups is None else np.asarray(real.groups)[kept])
+
+
 def run_camera(name: str, args, cg, say):
     """{'all': IspResult, 1: IspResult of the curve, ...} of one camera."""
     from g2r_jax.downstream.base import real_sets
@@ -93,6 +106,8 @@ def run_camera(name: str, args, cg, say):
     from g2r_jax.downstream.isp.net import IspTraining
 
     real = real_sets.load_nus(NUS / f"{name}.npz")
+    if args.inner:
+        real = inner_set(real)
     profile, shipped = profiles(name)
     written = isp_diagnoses.fill_missing(real.images) if args.real_fill == "mean" else real.images
     dngs = isp_pairs.thumbnail_sources(written, real.illuminants, profile, real.files or None)
@@ -249,6 +264,9 @@ def _arguments(argv):
                         help="diagnosis: every g2r_jax pair's level drawn from the real training pairs' (isp_diagnoses)")
     parser.add_argument("--joint-scenes", action="store_true",
                         help="diagnosis: each 'fitted' view takes one training file's cast and its light (isp_diagnoses)")
+    parser.add_argument("--inner", action="store_true",
+                        help="choose on training data only: leave out the files of the first outer test fold, "
+                             "run the 3 folds on the rest (inner_set)")
     parser.add_argument("--no-texture", action="store_true",
                         help="the g2r_jax rows' CG views without their files' texture (content.texture): as before issue 49's change")
     parser.add_argument("--texture", choices=("real", "noise"),

@@ -208,6 +208,8 @@ def test_json_round_trip_and_clear_errors():
                        ({**document, "chroma_scale": 2.0}, "content"),
                        ({**document, "cast_scale": 1.5}, "content"),
                        ({**document, "cast_target": [1, 1]}, "content.cast_target"),
+                       ({**document, "texture": {"covariance": [[1, 0], [0, 1]]}}, "content.texture"),
+                       ({**document, "texture": [1, 2]}, "content.texture"),
                        ({**document, "cast_target": [1, -1, 1]}, "content"),
                        ({**document, "apply_by_default": "yes"}, "content.apply_by_default"),
                        ({**document, "extra": 1}, "unknown keys")):

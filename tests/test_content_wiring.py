@@ -111,6 +111,11 @@ def test_fit_from_files_goes_on_past_a_bad_file():
     model, used = content.content_model_from_files(list(files), read, on_error=lambda f, p: problems.append(f))
     assert used == 2 and sorted(problems) == ["broken.dng", "tiny.dng"]
     assert model is not None and 0.0 <= float(model.chroma_scale) <= 1.0
+    assert model.texture is not None and model.texture.files == 2     # the files' texture, for an ISP's pairs
+    assert np.all(np.diag(model.texture.covariance) > 0)
+    back = content.content_from_dict(content.content_to_dict(model))
+    assert np.allclose(back.texture.covariance, model.texture.covariance, atol=1e-6)
+    assert content.as_cast(model).texture == model.texture if model.family in ("cast", "scenes") else True
     assert content.content_model_from_files(["broken.dng"], read) == (None, 0)
 
 

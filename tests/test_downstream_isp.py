@@ -180,9 +180,12 @@ def test_a_tiny_run_measures_every_row(tmp_path):
     assert "UPI" in sentence and "real training" in sentence and "profile's share" in sentence
     assert result.to_dict()["summary"]["fitted/psnr"]["seed_means"]
     assert any("content model" in note for note in result.notes)
+    assert any("texture" in note for note in result.notes)          # the fitted and single rows' files' texture
     assert not any("each frame's cast and brightness" in n for n in result.notes)     # no 'scenes' model for an ISP
     from g2r_jax.pipeline import without_content
-    fitted = task.run_isp_task(real, without_content(profile), cg, rows=("fitted",), seeds=(0,), n=6, training=training)
+    fitted = task.run_isp_task(real, without_content(profile), cg, rows=("fitted",), seeds=(0,), n=6, training=training,
+                               texture=False)
+    assert not any("texture" in note for note in fitted.notes)
     content_notes = [n for n in fitted.notes if "fitted to" in n]
     assert content_notes and all(": cast, each frame" in n for n in content_notes), content_notes
     assert result.figure(tmp_path / "isp.png") and (tmp_path / "isp.png").stat().st_size > 1000
@@ -307,3 +310,26 @@ def test_the_control_row_holds_the_real_inputs_where_the_masks_hide_the_targets(
     assert hidden.any() and np.array_equal(control_masks, masks)
     assert np.array_equal(packed[hidden], real_pairs[0][hidden])
     assert not np.allclose(packed[~hidden], real_pairs[0][~hidden], atol=1e-3)   # elsewhere: made again
+
+
+def test_the_fitted_rows_views_carry_their_files_texture():
+    from g2r_jax.downstream.base.real_sets import RealSet
+
+    profile = g2r_jax.load_profile("NikonD40")
+    rng = np.random.default_rng(0)
+    images = np.clip(rng.uniform(0.05, 0.9, (6, 64, 64, 3)), 0, 1).astype(np.float32)   # rough real scenes
+    lights = np.c_[rng.uniform(0.4, 0.7, 6), np.ones(6), rng.uniform(0.5, 0.8, 6)]
+    real = RealSet(name="rough", images=images, illuminants=lights / lights.sum(1, keepdims=True))
+    real, real_pairs, _, _ = task._real_pairs(real, pairs.thumbnail_sources(images, lights, profile), 64, 3)
+    flat_cg = [np.full((64, 64, 3), 0.3, np.float32)] * 2
+
+    def fitted_inputs(texture: bool):
+        sets = task._RowSets(real, real_pairs, profile, profile, flat_cg, n=8, size=64, view_size=32,
+                             illuminant_model="auto", single_light="auto", lights=None, texture=texture)
+        packed = sets.build("fitted", np.arange(6), 0, 0)[0]
+        return packed, sets.notes
+
+    (plain, plain_notes), (rough, rough_notes) = fitted_inputs(False), fitted_inputs(True)
+    contrast = lambda p: np.median(np.abs(np.diff(np.log(p[..., 1] + 1e-3), axis=2)))
+    assert contrast(plain) < 1e-3 < 0.05 < contrast(rough)
+    assert not any("texture" in n for n in plain_notes) and any("texture" in n for n in rough_notes)

@@ -75,3 +75,16 @@ def test_joint_views_take_the_drawn_files_cast():
     chroma = lambda c: np.log(c[:, [0, 2]] / c[:, 1:2])
     np.testing.assert_allclose(chroma(means), chroma(casts[pick]), atol=0.05)
     assert np.array_equal(lights, np.asarray(sets.real.illuminants, np.float64)[pick])
+
+
+def test_the_inner_set_never_holds_the_first_outer_test_fold():
+    import downstream_isp_nus
+
+    from g2r_jax.measure import folds_of
+
+    rng = np.random.default_rng(2)
+    real = RealSet(name="t", images=rng.random((30, 64, 64, 3)).astype(np.float32), illuminants=np.ones((30, 3)) / 3,
+                   files=tuple(f"f{i}" for i in range(30)))
+    inner = downstream_isp_nus.inner_set(real)
+    first = set(folds_of(30, 3, 0)[0].tolist())
+    assert len(inner.images) == 30 - len(first) and not first & {int(f[1:]) for f in inner.files}

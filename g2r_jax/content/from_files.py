@@ -3,7 +3,8 @@ camera-RGB image (greens of a CFA tile averaged, black subtracted, scaled by the
 area average, clipped blocks zeroed, as the NUS thumbnails of Cheng, Prasad and Brown, JOSA A
 2014), white-balanced by its as-shot neutral, its statistics, and the fit (`fitting`): the 'cast'
 family (what g2r-fit-profile stores) through the camera's colour model at the files' median
-neutral; the others against the reference CG set (no CG images at hand when a profile is fitted).
+neutral; the others against the reference CG set (no CG images at hand when a profile is fitted);
+and the thumbnails' texture (`texture`), which the pairs of a neural ISP carry.
 """
 
 from __future__ import annotations
@@ -69,4 +70,18 @@ def content_model_from_files(files, read: Callable, *, on_error: Optional[Callab
         stacked = np.stack(neutrals)
         neutral = np.median(stacked / stacked[:, 1:2], axis=0)
         to_camera = srgb_to_camera_matrices(neutral[None], colour_model)[0]
-    return fit_content_model(real, None, family=family, to_camera=to_camera), len(thumbnails)
+    model = fit_content_model(real, None, family=family, to_camera=to_camera)
+    return _with_texture(model, thumbnails), len(thumbnails)
+
+
+def _with_texture(model: ContentModel, thumbnails) -> ContentModel:
+    """`model` carrying the thumbnails' texture (`texture.fit_texture`; as it was when they hold too
+    few measured pixels)."""
+    import dataclasses
+
+    from g2r_jax.content.texture import fit_texture
+
+    try:
+        return dataclasses.replace(model, texture=fit_texture(thumbnails, source=f"{len(thumbnails)} DNG file(s)"))
+    except ValueError:
+        return model

@@ -58,15 +58,18 @@ class ContentModel(eqx.Module):
     apply_by_default: bool = eqx.field(static=True, default=False)   # conversion applies it unless told not to
     scene_casts: Any = None          # 'scenes': (K, 3) target colours, linear sRGB, luminance 1
     scene_brightness: Any = None     # 'scenes': (K,) target brightness (mean Y over the largest channel)
+    texture: Any = eqx.field(static=True, default=None)   # `content.texture.TextureModel` of the files, or None
 
 
 def content_model(chroma_scale: float = 1.0, tone_power: float = 1.0, *, cast_scale: float = 1.0,
                   cast_target=(1.0, 1.0, 1.0), family: str = "chroma", source: str = "",
                   target: dict | None = None, apply_by_default: bool = False, scene_casts=None,
-                  scene_brightness=None) -> ContentModel:
+                  scene_brightness=None, texture=None) -> ContentModel:
     """A `ContentModel` from its parameters (checked: s and c in [0, 1], p in [0.25, 4], t three
     positive numbers, scaled here to luminance 1; family 'scenes': `scene_casts` (K, 3) positive
-    colours, each scaled to luminance 1, and `scene_brightness` (K,) in (0, 1], `scenes`)."""
+    colours, each scaled to luminance 1, and `scene_brightness` (K,) in (0, 1], `scenes`; `texture`:
+    the files' `content.texture.TextureModel`, carried for the pairs of a neural ISP, not applied
+    by `apply`)."""
     if family not in FAMILIES:
         raise ValueError(f"unknown content family {family!r}; expected one of {', '.join(FAMILIES)}")
     if not (np.isfinite(chroma_scale) and 0.0 <= chroma_scale <= 1.0):
@@ -85,7 +88,7 @@ def content_model(chroma_scale: float = 1.0, tone_power: float = 1.0, *, cast_sc
                         family=family,
                         source=source, target=tuple(sorted((target or {}).items())),
                         apply_by_default=bool(apply_by_default), scene_casts=scene_casts,
-                        scene_brightness=scene_brightness)
+                        scene_brightness=scene_brightness, texture=texture)
 
 
 def _scene_table(family: str, casts, brightness):
@@ -147,7 +150,7 @@ def as_cast(model: ContentModel) -> ContentModel:
     return content_model(cast_scale=CAST_KEPT, cast_target=np.asarray(model.cast_target), family="cast",
                          source=f"{model.source} (its median cast only)",
                          target={k: v for k, v in model.target if k.startswith("cast_")},
-                         apply_by_default=model.apply_by_default)
+                         apply_by_default=model.apply_by_default, texture=model.texture)
 
 
 def with_default(model: ContentModel, apply_by_default: bool) -> ContentModel:

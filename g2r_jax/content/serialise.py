@@ -18,7 +18,7 @@ import numpy as np
 from g2r_jax.content.model import FAMILIES, ContentModel, content_model
 
 _KEYS = {"family", "chroma_scale", "tone_power", "cast_scale", "cast_target", "apply_by_default", "target", "source",
-         "scene_casts", "scene_brightness"}
+         "scene_casts", "scene_brightness", "texture"}
 
 
 def content_to_dict(model: ContentModel) -> dict:
@@ -29,7 +29,8 @@ def content_to_dict(model: ContentModel) -> dict:
             "source": model.source,
             **({} if model.family != "scenes" else {
                 "scene_casts": [[round(float(v), 6) for v in row] for row in np.asarray(model.scene_casts)],
-                "scene_brightness": [round(float(v), 6) for v in np.asarray(model.scene_brightness)]})}
+                "scene_brightness": [round(float(v), 6) for v in np.asarray(model.scene_brightness)]}),
+            **({} if model.texture is None else {"texture": model.texture.to_dict()})}
 
 
 def _raise(where: str, problem: str):
@@ -68,10 +69,19 @@ def content_from_dict(document, fail: Callable[[str, str], None] = _raise) -> Co
     if not isinstance(by_default, bool):
         fail("content.apply_by_default", f"expected true or false, got {by_default!r}")
     table = _scene_table(document, family, fail)
+    texture = None
+    if document.get("texture") is not None:
+        from g2r_jax.content.texture import texture_from_dict
+
+        try:
+            texture = texture_from_dict(document["texture"]) if isinstance(document["texture"], dict) else \
+                fail("content.texture", "expected a JSON object (covariance, grid, files, source)")
+        except ValueError as error:
+            fail("content.texture", str(error))
     try:
         model = content_model(scale, power, cast_scale=cast, cast_target=cast_target, family=family, source=str(document.get("source", "")),
                               target={str(k): float(v) for k, v in target.items()}, apply_by_default=by_default,
-                              **table)
+                              texture=texture, **table)
     except ValueError as error:
         fail("content", str(error))
     return model

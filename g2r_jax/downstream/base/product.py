@@ -35,9 +35,9 @@ def adapted_views(model, views: np.ndarray, seed: int = 0) -> np.ndarray:
     in chunks of `_APPLY_CHUNK`; the 'scenes' family draws each view's scene from `seed`."""
     import dataclasses
 
-    # The model's description (source, target) is static in its pytree: without it, one compiled
+    # The model's description (source, target, texture) is static in its pytree: without it, one compiled
     # program serves every fold's model.
-    model = dataclasses.replace(model, source="", target=())
+    model = dataclasses.replace(model, source="", target=(), texture=None)
     views = np.asarray(views, np.float32)
     draws = np.random.default_rng(seed).uniform(size=len(views)).astype(np.float32)
     if model.family != "scenes":

@@ -20,9 +20,13 @@ Rows (`ROWS`; the colour check's names):
   own when it carries one, else the 'cast' model fitted to the training folds' thumbnails only,
   `product.candidate_model(product.FITTED, ...)`), which recolours every CG frame
   before it is made RAW: the target is developed from the DNG that carries the adapted frame;
+  and the files' fine texture (`content.texture`: the profile's own when its content model
+  carries one, else that of the training folds' files) drawn onto every view: the CG frames are
+  flat at the task's scale where real scenes are not, and a UNet trained on flat views errs at
+  the real files' edges (docs/pages/validation/downstream_isp.md, "The CG frames' texture");
 - fitted_no_content: control: the same lights, no content model (`pipeline.without_content`);
 - shipped: the profile as given (out of the box; only when the caller asks for it);
-- single: g2r_jax from one training file (its light, the content model of its scene);
+- single: g2r_jax from one training file (its light, the content model and texture of its scene);
 - real: the real training folds' pairs;
 - real_plus_fitted: augmentation (issue 48): the real training folds' pairs and the 'fitted'
   row's pairs in one set, so that every batch draws from both, about in proportion (the real
@@ -319,11 +323,17 @@ class _RowSets:
         return model
 
     def texture_of(self, images, where: str):
-        """The texture of `images` (`content.texture.fit_texture`), or None when the run adds none."""
+        """The texture the profile's content model carries (g2r-fit-profile's, of its files), else
+        that of `images` (`content.texture.fit_texture`); None when the run adds none."""
         if not self.texture:
             return None
         from g2r_jax.content.texture import fit_texture
 
+        own = getattr(getattr(self.profile, "content", None), "texture", None)
+        if own is not None:
+            self.notes.append(f"g2r_jax rows' texture: the profile's own ({own.source or 'its files'}, "
+                              f"{own.grid} pixels across), added to every CG view")
+            return own
         try:
             model = fit_texture(images, source=where)
         except ValueError as error:
