@@ -127,11 +127,12 @@ def test_fit_profile_stores_the_scenes_model_on_and_convert_follows_the_flags(tm
     assert convert.main(["--example", "--profile", "gopro_hero6", "-o", str(dngs), "--quiet"]) == 0
     assert fit_profile.main([str(dngs), "-o", str(tmp_path / "cam.json")]) == 0
     said = capsys.readouterr().out
-    assert "content model: scenes, each frame's cast and brightness those of one of 1 real scenes" in said
+    assert "content model: scenes, each frame's cast and brightness those of one of 1 real scene (" in said
     assert "from 1 file(s)' scenes (their median cast weighs 1%/2% red/blue, the rest the prior" in said
     block = json.loads((tmp_path / "cam.json").read_text())["content"]
     assert block["family"] == "scenes" and block["apply_by_default"] is True and "1 DNG file(s)" in block["source"]
     assert len(block["cast_target"]) == 3 and len(block["scene_casts"]) == len(block["scene_brightness"]) == 64
+    assert block["texture"]["files"] == 1 and len(block["texture"]["covariance"]) == 3    # for an ISP's pairs
     assert fit_profile.main([str(dngs), "-o", str(tmp_path / "plain.json"), "--no-content-model"]) == 0
     assert "content" not in json.loads((tmp_path / "plain.json").read_text())
     document = json.loads((tmp_path / "cam.json").read_text())
