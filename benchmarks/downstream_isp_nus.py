@@ -269,6 +269,8 @@ def _arguments(argv):
                              "run the 3 folds on the rest (inner_set)")
     parser.add_argument("--no-texture", action="store_true",
                         help="the g2r_jax rows' CG views without their files' texture (content.texture): as before issue 49's change")
+    parser.add_argument("--texture-scale", type=float, default=1.0,
+                        help="the g2r_jax rows' texture with its standard deviations times this (isp_diagnoses.texture_scale)")
     parser.add_argument("--texture", choices=("real", "noise"),
                         help="diagnosis: every g2r_jax view (and UPI's) times the texture of a real training thumbnail "
                              "('real') or a draw of their texture's covariance ('noise') (isp_diagnoses)")
@@ -348,6 +350,8 @@ def main(argv=None) -> int:
         isp_diagnoses.joint_scenes()
     if args.texture:
         isp_diagnoses.textured(args.texture)
+    if args.texture_scale != 1.0:
+        isp_diagnoses.texture_scale(args.texture_scale)
     cg = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))]
     benchmark = runner.CameraBenchmark(
         run=lambda name: run_camera(name, args, cg, runner.say), entry=camera_entry,

@@ -71,12 +71,15 @@ def camera_profile(name: str):
 def shipped_content_model(name: str, colour_model):
     """The content model a shipped profile of NUS camera `name` carries (profiles/build_shipped_profiles.py):
     the prior's 'scenes' table with the camera's own scenes left out of its medians and spread,
-    through the camera's colour matrices."""
-    from g2r_jax.content import prior_scenes_model
-    from g2r_jax.content.prior import real_scenes_without, scene_covariance
+    through the camera's colour matrices, and the prior's texture without the camera's scenes."""
+    import dataclasses
 
-    return prior_scenes_model(colour_model, real_scenes_without(DATA, name), scene_covariance(DATA, name),
-                              "prior without " + name)
+    from g2r_jax.content import prior_scenes_model
+    from g2r_jax.content.prior import prior_texture, real_scenes_without, scene_covariance, texture_covariance
+
+    model = prior_scenes_model(colour_model, real_scenes_without(DATA, name), scene_covariance(DATA, name),
+                               "prior without " + name)
+    return dataclasses.replace(model, texture=prior_texture(texture_covariance(DATA, name), "prior without " + name))
 
 
 def other_camera(name: str, cameras) -> str:

@@ -12,6 +12,9 @@ builder (`task._RowSets`), as `--content-part` does for the content model.
 - `--joint-scenes`: the 'fitted' row's views each take the cast of one training file's scene
   (`content.fitting.scene_cast_targets`) and that file's own light, drawn together, instead of
   the files' median cast under lights drawn apart from it;
+- `--texture real|noise`: every g2r_jax view (and UPI's) times the texture of a real training
+  thumbnail, or a Gaussian draw of their texture's covariance (`textured`);
+- `--texture-scale S`: the product's texture (`content.texture`) with its amplitude times S;
 - `--real-fill mean`: the NUS thumbnails' missing pixels (0: masked chart, saturated pixels)
   written as the image's mean colour instead of white (`fill_missing`), in the real DNGs of both
   training and test; the masks stay as they were.
@@ -217,3 +220,21 @@ def textured(kind: str = "real") -> None:
                             saturated=saturated)
 
     task._RowSets.build, task._RowSets._g2r = build, g2r
+
+
+def texture_scale(scale: float) -> None:
+    """The g2r_jax rows' texture (`content.texture`) with its standard deviations times `scale`
+    (its covariance times scale^2): the texture's amplitude chosen on training data (`--inner`)."""
+    import dataclasses
+
+    from g2r_jax.downstream.isp import task
+
+    original = task._RowSets.texture_of
+
+    def texture_of(self, images, where):
+        model = original(self, images, where)
+        if model is None:
+            return None
+        return dataclasses.replace(model, covariance=tuple(map(tuple, (np.asarray(model.covariance) * scale ** 2).tolist())))
+
+    task._RowSets.texture_of = texture_of

@@ -263,10 +263,13 @@ def with_prior_content(profile, nus_camera: str | None = None, scenes_spread: bo
     with `scenes_spread` False the prior's median cast alone (`content.prior_cast_model`: the night
     profile, whose scenes' brightness the day scenes' spread does not describe), so that a shipped
     profile converts CG frames as a fitted one does (docs/pages/validation/content_model.md,
-    findings 3 and 5). A NUS camera's own scenes are left out of the prior (`prior.real_scenes_without`,
-    `prior.scene_covariance`)."""
+    findings 3 and 5), and the prior's texture (`prior.prior_texture`), which a neural ISP's pairs
+    carry. A NUS camera's own scenes are left out of the prior (`prior.real_scenes_without`,
+    `prior.scene_covariance`, `prior.texture_covariance`)."""
+    import dataclasses
+
     from g2r_jax.content import describe, prior_cast_model, prior_scenes_model, with_default
-    from g2r_jax.content.prior import real_scenes_without, scene_covariance
+    from g2r_jax.content.prior import prior_texture, real_scenes_without, scene_covariance, texture_covariance
 
     medians = real_scenes_without(DATA, nus_camera) if nus_camera else None
     scenes = (f"the other eight NUS cameras' scenes ({nus_camera}'s own left out)" if nus_camera
@@ -282,10 +285,16 @@ def with_prior_content(profile, nus_camera: str | None = None, scenes_spread: bo
         model = with_default(prior_cast_model(profile.colour, medians, source), True)
         target = (f"the median grey-world cast of real white-balanced scenes, the median of the per-camera "
                   f"medians of {scenes}")
+    texture = ""
+    if scenes_spread:      # the day scenes' texture, like their spread, does not describe night scenes
+        model = dataclasses.replace(model, texture=prior_texture(texture_covariance(DATA, nus_camera) if nus_camera
+                                                                 else None, source))
+        texture = (f" Texture (for a neural ISP's pairs, g2r_jax.content.texture): the covariance of the log texture "
+                   f"at {model.texture.grid} pixels across of the thumbnails of {scenes}.")
     return replace(profile, content=model), (
         f"{describe(model)}; applied by default (g2r-convert --no-content-model turns it off). Target: {target} "
         f"(../shared/data/estimation/nus, g2r_jax.content.prior), carried to linear sRGB through this camera's "
-        f"colour matrices at D65.")
+        f"colour matrices at D65.{texture}")
 
 
 def dslr_profiles(cameras: dict, noise_db: dict, exposure: tuple) -> None:

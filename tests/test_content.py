@@ -239,6 +239,8 @@ def test_prior_numbers_are_those_of_the_data(shared_data):
         assert prior.REAL_SCENES["medians"][key] == pytest.approx(real[key], rel=1e-3)
         assert prior.REFERENCE_CG["medians"][key] == pytest.approx(cg[key], rel=1e-3)
     np.testing.assert_allclose(prior.SCENE_SPREAD["covariance"], prior.scene_covariance(shared_data), atol=1e-5)
+    np.testing.assert_allclose(prior.SCENE_TEXTURE["covariance"], prior.texture_covariance(shared_data), atol=1e-4)
+    assert not np.allclose(prior.texture_covariance(shared_data, "SonyA57"), prior.SCENE_TEXTURE["covariance"], atol=1e-5)
 
 
 def test_leaving_a_camera_out_of_the_prior_names_a_camera_it_does_not_know(tmp_path):

@@ -37,6 +37,12 @@ SCENE_SPREAD = {"statistics": ("cast_red", "cast_blue", "log brightness"),
                 "covariance": ((0.02059, -0.01058, -0.01182), (-0.01058, 0.03085, 0.02360),
                                (-0.01182, 0.02360, 0.60929)),
                 "source": "prior: NUS 8-camera set, nine cameras' files about their camera's medians"}
+# The fine texture of real scenes, for a profile without files (`content.texture`): the covariance of
+# the log texture at 32 pixels across of the NUS thumbnails, the nine cameras' pixels pooled
+# (`texture_covariance`); each channel's sd 0.44-0.49, correlated 0.91-0.96.
+SCENE_TEXTURE = {"covariance": ((0.21245, 0.19388, 0.20286), (0.19388, 0.19477, 0.20666),
+                                (0.20286, 0.20666, 0.24012)),
+                 "grid": 32, "source": "prior: NUS 8-camera set, nine cameras' thumbnails pooled"}
 NUS_CAMERAS = ("Canon1DsMkIII", "Canon600D", "FujifilmXM1", "NikonD40", "NikonD5200", "OlympusEPL6",
                "PanasonicGX1", "SamsungNX2000", "SonyA57")
 
@@ -114,3 +120,28 @@ def measure_reference_cg(data: Path) -> dict:
         neutral = np.median(lights / lights[:, 1:2], axis=0)
         per_camera.append(statistics(srgb_to_white_balanced_camera(frames, neutral, colour)).medians())
     return {k: float(np.median([m[k] for m in per_camera])) for k in per_camera[0]}
+
+
+def texture_covariance(data: Path, camera: str | None = None) -> np.ndarray:
+    """`SCENE_TEXTURE`'s covariance (3, 3) recomputed from ../shared/data (`data`): the log texture
+    (`texture.texture_residuals`) of the NUS thumbnails, the measured pixels of every camera pooled,
+    the NUS camera `camera` left out when given."""
+    from g2r_jax.content.texture import texture_residuals
+
+    if camera is not None and camera not in NUS_CAMERAS:
+        raise ValueError(f"{camera!r} is not a NUS camera ({', '.join(NUS_CAMERAS)})")
+    pixels = []
+    for name in NUS_CAMERAS:
+        if name != camera:
+            residuals, kept = texture_residuals(_nus(data, name)[0])
+            pixels += [r[k] for r, k in zip(residuals, kept)]
+    return np.cov(np.concatenate(pixels).T.astype(np.float64))
+
+
+def prior_texture(covariance=None, source: str = ""):
+    """The `texture.TextureModel` of the prior (`SCENE_TEXTURE`, or `covariance`)."""
+    from g2r_jax.content.texture import TextureModel
+
+    covariance = SCENE_TEXTURE["covariance"] if covariance is None else np.asarray(covariance).tolist()
+    return TextureModel(covariance=tuple(map(tuple, covariance)), grid=SCENE_TEXTURE["grid"], files=0,
+                        source=source or SCENE_TEXTURE["source"])

@@ -4,8 +4,8 @@ CG images as a random texture of the same statistics.
 
 At 32 pixels across, the NUS cameras' scenes change by a median 20 % (in log) from one pixel to
 the next, the CARLA frames by 4 % (docs/pages/validation/downstream_isp.md, "The CG frames'
-texture"): game-engine surfaces are flat at that scale, real ones (foliage, facades, ground)
-are not. A neural ISP trained on the CG frames then never learns how the developer renders fine
+texture"): game-engine surfaces are flat at that scale and meet at a few strong edges, real ones
+(foliage, facades, ground) are textured everywhere. A neural ISP trained on the CG frames then never learns how the developer renders fine
 detail, and errs most at edges.
 
 The model: the 3 x 3 covariance C of the images' *log texture* at `grid` pixels across their

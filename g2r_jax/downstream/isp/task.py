@@ -25,7 +25,8 @@ Rows (`ROWS`; the colour check's names):
   flat at the task's scale where real scenes are not, and a UNet trained on flat views errs at
   the real files' edges (docs/pages/validation/downstream_isp.md, "The CG frames' texture");
 - fitted_no_content: control: the same lights, no content model (`pipeline.without_content`);
-- shipped: the profile as given (out of the box; only when the caller asks for it);
+- shipped: the profile as given (out of the box; only when the caller asks for it), with the
+  texture its content model carries (a shipped profile's: the prior's, `content.prior.SCENE_TEXTURE`);
 - single: g2r_jax from one training file (its light, the content model and texture of its scene);
 - real: the real training folds' pairs;
 - real_plus_fitted: augmentation (issue 48): the real training folds' pairs and the 'fitted'
@@ -367,7 +368,9 @@ class _RowSets:
             return self._cached(("upi", seed), lambda: _pairs.upi_pairs(
                 _sets.linear_to_srgb_views(self.views(seed)), self.profile, seed + 1, size=self.size))
         if row == "shipped":
-            return self._cached(("shipped", seed), lambda: self._g2r(self.views(seed), self.shipped, seed + 2, as_given=True))
+            texture = getattr(getattr(self.shipped, "content", None), "texture", None) if self.texture else None
+            return self._cached(("shipped", seed), lambda: self._g2r(self.views(seed), self.shipped, seed + 2,
+                                                                     as_given=True, texture=texture))
         if row == "single":
             pick = int(train[np.random.default_rng(salt + 3).integers(len(train))])
             from g2r_jax.downstream.base.product import fitted_illuminants
