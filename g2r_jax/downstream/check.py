@@ -126,6 +126,8 @@ def _isp_check(inputs: Inputs, profile, *, profile_given: bool, seeds, folds, sa
     result = isp_task.run_isp_task(inputs.real, profile, inputs.cg, rows=_isp_rows(profile_given), seeds=seeds,
                                    folds=folds, progress=say, cache=cache)
     lines = ["## Neural ISP (RAW -> sRGB)", "", result.sentence(), "", result.table(), "",
+             "Where the colour error lies (each test image's ΔE2000 left after its best white balance and its "
+             "best 3 x 3 colour correction, `downstream.isp.error_parts`):", "", result.parts_table(), "",
              *(f"- {note}" for note in result.notes), "",
              "Predicted against target on a few real test files: `isp.png`.", ""]
     return result, result.to_dict(), result.sentence(), lines
