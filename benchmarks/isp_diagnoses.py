@@ -14,6 +14,8 @@ builder (`task._RowSets`), as `--content-part` does for the content model.
   the files' median cast under lights drawn apart from it;
 - `--texture real|noise`: every g2r_jax view (and UPI's) times the texture of a real training
   thumbnail, or a Gaussian draw of their texture's covariance (`textured`);
+- `--whole-scenes`: a 'scenes' content model kept whole for the g2r_jax rows, not its median cast;
+- `--texture-first`: the texture drawn before the content model instead of after it;
 - `--texture-scale S`: the product's texture (`content.texture`) with its amplitude times S;
 - `--real-fill mean`: the NUS thumbnails' missing pixels (0: masked chart, saturated pixels)
   written as the image's mean colour instead of white (`fill_missing`), in the real DNGs of both
@@ -238,3 +240,30 @@ def texture_scale(scale: float) -> None:
         return dataclasses.replace(model, covariance=tuple(map(tuple, (np.asarray(model.covariance) * scale ** 2).tolist())))
 
     task._RowSets.texture_of = texture_of
+
+
+def whole_scenes() -> None:
+    """The g2r_jax rows keep a 'scenes' content model whole (each view its own scene's cast and
+    brightness) instead of its median cast (`content.as_cast`, what `g2r-convert --content-cast-only`
+    takes for an ISP's pairs)."""
+    import g2r_jax.content
+
+    g2r_jax.content.as_cast = lambda model: model
+
+
+def texture_first() -> None:
+    """The g2r_jax rows' texture drawn onto the CG views before their content model instead of after
+    it (with `--whole-scenes`: the order a conversion that textures its input frames would have)."""
+    import jax
+
+    from g2r_jax.content.texture import add_texture
+    from g2r_jax.downstream.isp import task
+
+    original = task._RowSets._g2r
+
+    def g2r(self, views, profile, salt, model=None, *, as_given=False, saturated=None, texture=None):
+        if texture is not None:
+            views = np.asarray(add_texture(texture, views, jax.random.PRNGKey(salt + 91)))
+        return original(self, views, profile, salt, model, as_given=as_given, saturated=saturated)
+
+    task._RowSets._g2r = g2r
