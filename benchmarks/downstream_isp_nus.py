@@ -269,10 +269,10 @@ def _arguments(argv):
                              "run the 3 folds on the rest (inner_set)")
     parser.add_argument("--no-texture", action="store_true",
                         help="the g2r_jax rows' CG views without their files' texture (content.texture): as before issue 49's change")
-    parser.add_argument("--whole-scenes", action="store_true",
-                        help="diagnosis: the g2r_jax rows keep a 'scenes' model whole, not its median cast (isp_diagnoses)")
-    parser.add_argument("--texture-first", action="store_true",
-                        help="diagnosis: the texture drawn before the content model, not after it (isp_diagnoses)")
+    parser.add_argument("--cast-only", action="store_true",
+                        help="diagnosis: the g2r_jax rows take a 'scenes' model's median cast even with the texture (isp_diagnoses)")
+    parser.add_argument("--texture-after", action="store_true",
+                        help="diagnosis: the texture drawn after the content model, not before it (isp_diagnoses)")
     parser.add_argument("--texture-scale", type=float, default=1.0,
                         help="the g2r_jax rows' texture with its standard deviations times this (isp_diagnoses.texture_scale)")
     parser.add_argument("--texture", choices=("real", "noise"),
@@ -354,10 +354,10 @@ def main(argv=None) -> int:
         isp_diagnoses.joint_scenes()
     if args.texture:
         isp_diagnoses.textured(args.texture)
-    if args.whole_scenes:
-        isp_diagnoses.whole_scenes()
-    if args.texture_first:
-        isp_diagnoses.texture_first()
+    if args.cast_only:
+        isp_diagnoses.cast_only()
+    if args.texture_after:
+        isp_diagnoses.texture_after()
     if args.texture_scale != 1.0:
         isp_diagnoses.texture_scale(args.texture_scale)
     cg = [np.asarray(Image.open(f).convert("RGB")) for f in sorted(CARLA.glob("*.png"))]

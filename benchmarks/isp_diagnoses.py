@@ -14,8 +14,9 @@ builder (`task._RowSets`), as `--content-part` does for the content model.
   the files' median cast under lights drawn apart from it;
 - `--texture real|noise`: every g2r_jax view (and UPI's) times the texture of a real training
   thumbnail, or a Gaussian draw of their texture's covariance (`textured`);
-- `--whole-scenes`: a 'scenes' content model kept whole for the g2r_jax rows, not its median cast;
-- `--texture-first`: the texture drawn before the content model instead of after it;
+- `--cast-only`: the g2r_jax rows take a 'scenes' model's median cast even with the texture;
+- `--texture-after`: the texture drawn after the content model instead of before it (with
+  `--cast-only`: the texture's first form, the median cast then the texture);
 - `--texture-scale S`: the product's texture (`content.texture`) with its amplitude times S;
 - `--real-fill mean`: the NUS thumbnails' missing pixels (0: masked chart, saturated pixels)
   written as the image's mean colour instead of white (`fill_missing`), in the real DNGs of both
@@ -242,28 +243,33 @@ def texture_scale(scale: float) -> None:
     task._RowSets.texture_of = texture_of
 
 
-def whole_scenes() -> None:
-    """The g2r_jax rows keep a 'scenes' content model whole (each view its own scene's cast and
-    brightness) instead of its median cast (`content.as_cast`, what `g2r-convert --content-cast-only`
-    takes for an ISP's pairs)."""
-    import g2r_jax.content
+def cast_only() -> None:
+    """The g2r_jax rows take a 'scenes' content model's median cast (`content.as_cast`, what
+    `g2r-convert --content-cast-only` takes for an ISP's pairs) even with the texture, as before
+    the texture's order was chosen."""
+    from g2r_jax.content import as_cast
+    from g2r_jax.downstream.isp import task
 
-    g2r_jax.content.as_cast = lambda model: model
+    original = task._RowSets.content_model
+
+    def content_model(self, images, lights, seed, where):
+        model = original(self, images, lights, seed, where)
+        return as_cast(model) if model is not None and model.family == "scenes" else model
+
+    task._RowSets.content_model = content_model
 
 
-def texture_first() -> None:
-    """The g2r_jax rows' texture drawn onto the CG views before their content model instead of after
-    it (with `--whole-scenes`: the order a conversion that textures its input frames would have)."""
-    import jax
-
-    from g2r_jax.content.texture import add_texture
+def texture_after() -> None:
+    """The g2r_jax rows' texture drawn onto the CG views after their content model instead of before
+    it (the product's order: texture first)."""
+    from g2r_jax.downstream.base.product import adapted_views
     from g2r_jax.downstream.isp import task
 
     original = task._RowSets._g2r
 
     def g2r(self, views, profile, salt, model=None, *, as_given=False, saturated=None, texture=None):
-        if texture is not None:
-            views = np.asarray(add_texture(texture, views, jax.random.PRNGKey(salt + 91)))
-        return original(self, views, profile, salt, model, as_given=as_given, saturated=saturated)
+        if model is not None:
+            views, model = adapted_views(model, views, salt), None
+        return original(self, views, profile, salt, model, as_given=as_given, saturated=saturated, texture=texture)
 
     task._RowSets._g2r = g2r

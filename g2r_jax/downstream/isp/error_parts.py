@@ -21,9 +21,9 @@ PARTS = {"delta_e_balance": "ΔE2000 left after each image's best white balance 
 
 
 def _linear(srgb: np.ndarray) -> np.ndarray:
-    """IEC 61966-2-1 decoding of [0, 1] sRGB."""
-    x = np.clip(np.asarray(srgb, np.float64), 0.0, 1.0)
-    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+    from g2r_jax.downstream.isp.net import srgb_decoded
+
+    return srgb_decoded(srgb)
 
 
 def _encoded(linear: np.ndarray) -> np.ndarray:

@@ -342,6 +342,12 @@ def ssim(predicted: np.ndarray, target: np.ndarray, mask=None, *, data_range: fl
     return _masked_mean(index.mean(axis=-1), inside.astype(np.float64))
 
 
+def srgb_decoded(srgb) -> np.ndarray:
+    """IEC 61966-2-1 decoding of sRGB values, clipped to [0, 1] first, in float64 (numpy)."""
+    x = np.clip(np.asarray(srgb, np.float64), 0.0, 1.0)
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+
+
 def delta_e_2000(predicted: np.ndarray, target: np.ndarray, mask=None) -> np.ndarray:
     """Per-image mean CIEDE2000 (Sharma, Wu, Dalal, Color Res. Appl. 30(1), 2005; colour-science's
     `delta_E(..., method='CIE 2000')`) between sRGB-coded images: IEC 61966-2-1 decoding, sRGB ->
@@ -356,9 +362,7 @@ def delta_e_2000(predicted: np.ndarray, target: np.ndarray, mask=None) -> np.nda
     white = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
 
     def lab(image):
-        x = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
-        linear = np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
-        return colour.XYZ_to_Lab(linear @ np.asarray(MATRIX_SRGB_TO_XYZ).T, white)
+        return colour.XYZ_to_Lab(srgb_decoded(image) @ np.asarray(MATRIX_SRGB_TO_XYZ).T, white)
 
     difference = np.asarray(colour.delta_E(lab(predicted), lab(target), method="CIE 2000"), np.float64)
     return _masked_mean(difference, _pixel_weights(mask, difference.shape + (1,)))
