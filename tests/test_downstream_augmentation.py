@@ -146,7 +146,7 @@ def test_experiment_rows_see_the_labelled_files_of_the_training_folds(monkeypatc
         seen["real"].append({index[i.tobytes()] for i in np.asarray(x)})
         return lambda test: np.tile(np.asarray(y).mean(0), (len(test), 1))
 
-    def chosen(estimator, data, seed=0, recipes=None):
+    def chosen(estimator, data, seed=0, recipes=None, synthetic=None):
         seen["real_plus_fitted"].append({index[i.tobytes()] for i in np.asarray(data.real[0])})
         assert len(data.synthetic[0]) == 50
         return (lambda test: np.tile(np.asarray(data.real[1]).mean(0) * 1.01, (len(test), 1))), aug.REAL, {}
@@ -179,7 +179,7 @@ def test_the_labelled_curve_has_a_point_per_count_and_draws_it(monkeypatch, tmp_
         sizes.append(len(x))
         return lambda test: np.tile(np.asarray(y).mean(0), (len(test), 1))
 
-    def chosen(estimator, data, seed=0, recipes=None):
+    def chosen(estimator, data, seed=0, recipes=None, synthetic=None):
         return (lambda test: np.tile(np.asarray(data.synthetic[1]).mean(0), (len(test), 1))), aug.Recipe("mixed", 30), {}
 
     monkeypatch.setattr(est, "train_estimator", alone)
@@ -211,3 +211,57 @@ def test_a_bad_curve_option_is_refused_before_any_work(tmp_path, capsys):
     status = downstream.main(["--measured", str(folder), "--cg", str(folder), "--report", str(tmp_path / "r"),
                               "--curve", "10,ten"])
     assert status == 2 and "--curve 10,ten" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_a_given_synthetic_network_is_the_pretraining_and_changes_nothing(worlds, monkeypatch):
+    """`train(..., synthetic=)`: the 'synthetic' recipe's network reused as the first network of
+    'pretrained' gives the very estimates of a pretraining from scratch (same set, seed, config)."""
+    real, synthetic, (test_x, _), _ = worlds
+    small = dataclasses.replace(est.CnnConfig(), checkpoints=2, steps_per_checkpoint=20)
+    monkeypatch.setattr(est, "CnnConfig", lambda: small)
+    monkeypatch.setattr(est, "train_cnn", lambda *a, **k: _train_small(small, *a, **k))
+    monkeypatch.setitem(est._TRAINERS, "cnn", est.train_cnn)
+    data = aug.AugmentedSet(real, synthetic)
+    first = aug.train("cnn", data, aug.SYNTHETIC, seed=4)
+    again = aug.train("cnn", data, aug.Recipe("pretrained"), seed=4)(test_x)
+    reused = aug.train("cnn", data, aug.Recipe("pretrained"), seed=4, synthetic=first)(test_x)
+    np.testing.assert_array_equal(again, reused)
+    assert aug.train("cnn", data, aug.SYNTHETIC, seed=4, synthetic=first) is first
+
+
+def _train_small(small, *args, config=None, **kwargs):
+    return _ORIGINAL_TRAIN_CNN(*args, config=config or small, **kwargs)
+
+
+_ORIGINAL_TRAIN_CNN = est.train_cnn
+
+
+def test_the_augmented_row_reuses_its_synthetic_rows_set_and_estimator(monkeypatch):
+    """With 'fitted' and 'real_plus_fitted' in one experiment, each fold builds the g2r_jax set once
+    and trains the estimator on it once (the augmented row's 'synthetic' candidate is that
+    estimator), and the errors are those of the rows run apart."""
+    from test_downstream_content_rows import _cg, _fake_sets, _real_set
+
+    from g2r_jax.downstream.illuminant import experiment
+
+    real, profile = _real_set(count=18)
+    calls, trained = [], []
+    original = est.train_estimator
+
+    def counting(kind, images, lights, *, seed=0, weights=None):
+        trained.append((kind, np.asarray(images).shape[0], weights is None))
+        return original(kind, images, lights, seed=seed, weights=weights)
+
+    monkeypatch.setattr(est, "train_estimator", counting)
+    _fake_sets(monkeypatch, calls)
+    run = lambda rows: experiment.illuminant_experiment(real, profile, _cg(), rows=rows, estimators=("histogram",),
+                                                        seeds=(0,), n=50, folds=3, illuminant_model="prior")
+    together = run(("fitted", "real_plus_fitted"))
+    g2r_sets = len([c for c in calls if c[0] == "g2r"])
+    synthetic_alone = len([t for t in trained if t[1] == 50 and t[2]])
+    assert g2r_sets == 3 and synthetic_alone == 3          # once per fold, for both rows
+    apart = [run((row,)) for row in ("fitted", "real_plus_fitted")]
+    for row, result in zip(("fitted", "real_plus_fitted"), apart):
+        np.testing.assert_array_equal(together.errors[(row, "histogram")][0], result.errors[(row, "histogram")][0])
+    assert together.recipes == {**apart[1].recipes}

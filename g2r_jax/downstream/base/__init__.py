@@ -8,6 +8,7 @@ train and test with, written once.
 - `upi`: UPI (Brooks et al. CVPR 2019), the baseline inverse ISP and its noise prior;
 - `product`: g2r_jax as `g2r-fit-profile` makes it from real files (lights and content model);
 - `cache`: the store of finished trainings; `progress`: the progress bar over planned trainings;
+- `once`: work that threads share, done by the first that needs it;
 - `figures`: a figure written as a PNG.
 
 Layer: the bottom of `downstream`; it imports none of the task sub-packages (`illuminant`,

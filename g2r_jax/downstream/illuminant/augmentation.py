@@ -91,8 +91,11 @@ def _mixed_weights(n_real: int, n_synthetic: int, worth: float) -> np.ndarray:
     return np.r_[np.ones(n_real), np.full(n_synthetic, worth / n_synthetic)]
 
 
-def train(estimator: str, data: AugmentedSet, recipe: Recipe, *, seed: int = 0):
-    """One estimator trained by `recipe` on `data`. **Returns:** a predictor (images -> lights)."""
+def train(estimator: str, data: AugmentedSet, recipe: Recipe, *, seed: int = 0, synthetic=None):
+    """One estimator trained by `recipe` on `data`. `synthetic`: the predictor the 'synthetic'
+    recipe trains on `data` with this `seed`, when already trained (it is that recipe's result and
+    the 'pretrained' recipe's first network: not trained again). **Returns:** a predictor (images
+    -> lights)."""
     from g2r_jax.downstream.illuminant import estimators
 
     real_images, real_lights = data.real
@@ -100,12 +103,15 @@ def train(estimator: str, data: AugmentedSet, recipe: Recipe, *, seed: int = 0):
         return estimators.train_estimator(estimator, real_images, real_lights, seed=seed)
     synthetic_images, synthetic_lights = data.synthetic
     if recipe.kind == "synthetic":
+        if synthetic is not None:
+            return synthetic
         return estimators.train_estimator(estimator, synthetic_images, synthetic_lights, seed=seed)
     if recipe.kind == "pretrained":
         if estimator != "cnn":
             raise ValueError(f"recipe 'pretrained' is for the CNN, not {estimator!r}")
         config = estimators.CnnConfig()
-        first = estimators.train_cnn(synthetic_images, synthetic_lights, seed=seed, config=config)
+        first = synthetic if synthetic is not None else estimators.train_cnn(
+            synthetic_images, synthetic_lights, seed=seed, config=config)
         tuned = dataclasses.replace(config, learning_rate=config.learning_rate * FINE_TUNE_RATE)
         return estimators.train_cnn(real_images, real_lights, seed=seed, config=tuned, init=first.params)
     if recipe.kind != "mixed":
@@ -137,27 +143,34 @@ def _cross_validation_parts(images: np.ndarray, seed: int, k: int = 3) -> list:
     return [np.flatnonzero(np.isin(groups, part)) for part in np.array_split(distinct, min(k, len(distinct)))]
 
 
-def _cross_validated(estimator: str, data: AugmentedSet, recipes: tuple, seed: int) -> tuple:
+def _synthetic_needed(recipes) -> bool:
+    return any(recipe.kind in ("synthetic", "pretrained") for recipe in recipes)
+
+
+def _cross_validated(estimator: str, data: AugmentedSet, recipes: tuple, seed: int, synthetic=None) -> tuple:
     """({recipe: per-image errors of every real file, in `parts` order}, the synthetic-alone
-    predictor or None): each recipe trained K times without one part, scored on it."""
+    predictor or None): each recipe trained K times without one part, scored on it. The
+    synthetic set alone does not depend on the real files: trained once (or `synthetic` given),
+    and the 'pretrained' recipe starts from it."""
     real_images, real_lights = (np.asarray(a) for a in data.real)
     parts = _cross_validation_parts(real_images, seed, folds(estimator))
-    synthetic = train(estimator, data, SYNTHETIC, seed=seed) if SYNTHETIC in recipes else None
+    if synthetic is None and _synthetic_needed(recipes):
+        synthetic = train(estimator, data, SYNTHETIC, seed=seed)
     errors = {recipe: [] for recipe in recipes}
     for held in parts:
         kept = np.setdiff1d(np.arange(len(real_images)), held)
         part = dataclasses.replace(data, real=(real_images[kept], real_lights[kept]))
-        for recipe in recipes:   # the synthetic set alone does not depend on the real files: trained once
-            predict = synthetic if recipe == SYNTHETIC else train(estimator, part, recipe, seed=seed)
+        for recipe in recipes:
+            predict = train(estimator, part, recipe, seed=seed, synthetic=synthetic)
             errors[recipe].append(angular_error_degrees(predict(real_images[held]), real_lights[held]))
     return {recipe: np.concatenate(values) for recipe, values in errors.items()}, synthetic
 
 
-def _choose(estimator: str, data: AugmentedSet, seed: int, recipes) -> tuple:
+def _choose(estimator: str, data: AugmentedSet, seed: int, recipes, synthetic=None) -> tuple:
     recipes = tuple(dict.fromkeys((REAL,) + tuple(recipes or candidates(estimator))))
     if len(np.unique(duplicate_groups(np.asarray(data.real[0], np.float32)))) < MIN_FILES:
-        return FEW_FILES, {}, None
-    errors, synthetic = _cross_validated(estimator, data, recipes, seed)
+        return FEW_FILES, {}, synthetic
+    errors, synthetic = _cross_validated(estimator, data, recipes, seed, synthetic)
     return _clear_winner(errors), {str(r): float(np.mean(e)) for r, e in errors.items()}, synthetic
 
 
@@ -192,10 +205,10 @@ def _clear_winner(errors: dict) -> Recipe:
     return min(clear, key=lambda r: float(np.mean(errors[r]))) if clear else base
 
 
-def train_chosen(estimator: str, data: AugmentedSet, *, seed: int = 0, recipes=None) -> tuple:
-    """`choose` the recipe, then train it on all the real files. **Returns:** (predictor, recipe,
-    the held-out scores)."""
-    recipe, scores, synthetic = _choose(estimator, data, seed, recipes)
-    if recipe == SYNTHETIC and synthetic is not None:
-        return synthetic, recipe, scores
-    return train(estimator, data, recipe, seed=seed), recipe, scores
+def train_chosen(estimator: str, data: AugmentedSet, *, seed: int = 0, recipes=None, synthetic=None) -> tuple:
+    """`choose` the recipe, then train it on all the real files. `synthetic`: the estimator
+    already trained on `data.synthetic` with this `seed` (e.g. the synthetic row's own), reused
+    as the 'synthetic' candidate and the first network of 'pretrained': the result is the same,
+    with fewer trainings. **Returns:** (predictor, recipe, the held-out scores)."""
+    recipe, scores, synthetic = _choose(estimator, data, seed, recipes, synthetic)
+    return train(estimator, data, recipe, seed=seed, synthetic=synthetic), recipe, scores

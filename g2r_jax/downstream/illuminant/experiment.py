@@ -47,6 +47,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from g2r_jax.downstream.base import training_sets as _sets
+from g2r_jax.downstream.base.once import Once
 from g2r_jax.downstream.base.product import fitted_illuminants
 from g2r_jax.downstream.base.progress import advance
 from g2r_jax.downstream.base.real_sets import RealSet
@@ -141,6 +142,7 @@ class _Sets:
         self.cg_linear, self.illuminant_model, self.other = cg_linear, illuminant_model, other
         self.single_light = single_light
         self.cache = {}
+        self.fold_work = Once()   # the current fold's sets and trainings that rows share
         self.notes = []   # lines for the result's notes (e.g. the content model each fold kept)
 
     def views(self, seed):
@@ -184,6 +186,7 @@ class _Sets:
         from g2r_jax.downstream.illuminant import content_rows
 
         rows = set(rows) | {AUGMENTED_ROWS[r] for r in rows if r in AUGMENTED_ROWS}
+        self.fold_work = Once()
         if rows & set(SYNTHETIC_CG_ROWS + CONTENT_ROWS):
             self.views(seed)
         if set(rows) & {"fitted", "fitted_no_content", "published", "real_profile_light", "other_content"}:
@@ -203,7 +206,11 @@ class _Sets:
 
             labelled = self.labelled_files(train, fold, seed)
             files = (real.images[labelled], real.illuminants[labelled])
-            return files if row == "real" else AugmentedSet(real=files, synthetic=self.build(AUGMENTED_ROWS[row], train, fold, seed))
+            if row == "real":
+                return files
+            synthetic = AUGMENTED_ROWS[row]
+            return AugmentedSet(real=files, synthetic=self.fold_work.get(
+                ("set", synthetic, fold, seed), lambda: self.build(synthetic, train, fold, seed)))
         if row == "upi":
             key = ("upi", seed)
             if key not in self.cache:
@@ -307,7 +314,8 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
             def row_errors(row):
                 keys = {e: unit_key(row, e, test, seed) for e in estimators}
                 stored = {e: cache.get(keys[e]) for e in estimators} if cache is not None else {}
-                built = None if stored and all(v is not None for v in stored.values()) else sets.build(row, train, fold, seed)
+                built = None if stored and all(v is not None for v in stored.values()) else sets.fold_work.get(
+                    ("set", row, fold, seed), lambda: sets.build(row, train, fold, seed))
                 out = {}
                 for estimator in estimators:
                     if stored.get(estimator) is not None:
@@ -315,7 +323,8 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
                         if (row, estimator) in recipes:
                             recipes[(row, estimator)].append(str(stored[estimator]["recipe"]))
                     else:
-                        predict = _trained(estimator, built, 1000 * seed + fold, recipes.get((row, estimator)))
+                        predict = _trained(estimator, built, 1000 * seed + fold, recipes.get((row, estimator)),
+                                           sets.fold_work, row, AUGMENTED_ROWS.get(row) in rows)
                         estimates = predict(real.images[test])
                         if cache is not None:
                             chosen = recipes[(row, estimator)][-1] if (row, estimator) in recipes else ""
@@ -348,14 +357,20 @@ def _unit_keys(real: RealSet, profile, cg_linear, **options):
     return lambda row, estimator, test, seed: key_of(base, row, estimator, np.asarray(test), seed)
 
 
-def _trained(estimator: str, built, seed: int, recipes: Optional[list]):
+def _trained(estimator: str, built, seed: int, recipes: Optional[list], fold_work: Once, row: str,
+             shares: bool = False):
     """A predictor trained on a row's set: an (images, lights) pair, or an augmented set (its
-    recipe chosen on the training files and appended to `recipes`)."""
+    recipe chosen on the training files and appended to `recipes`). A row's estimator is trained
+    once per fold (`fold_work`); with `shares` (its synthetic row is trained too) the augmented
+    row reuses that row's estimator as its 'synthetic' candidate and its pretraining (the same
+    set, seed and training: the same network, one training fewer per candidate)."""
     from g2r_jax.downstream.illuminant.augmentation import AugmentedSet, train_chosen
     from g2r_jax.downstream.illuminant.estimators import train_estimator
 
     if not isinstance(built, AugmentedSet):
-        return train_estimator(estimator, *built, seed=seed)
-    predict, recipe, _ = train_chosen(estimator, built, seed=seed)
+        return fold_work.get(("trained", row, estimator), lambda: train_estimator(estimator, *built, seed=seed))
+    synthetic = fold_work.get(("trained", AUGMENTED_ROWS[row], estimator),
+                              lambda: train_estimator(estimator, *built.synthetic, seed=seed)) if shares else None
+    predict, recipe, _ = train_chosen(estimator, built, seed=seed, synthetic=synthetic)
     recipes.append(str(recipe))
     return predict
