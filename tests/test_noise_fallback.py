@@ -107,3 +107,23 @@ def test_small_files_pool_their_blocks(tmp_path):
     injected = shot[:, None] * LEVELS + read[:, None]
     fitted = noise_extension.predicted_variance(profile.noise, ISO, np.broadcast_to(LEVELS, (4, len(LEVELS))))
     assert np.all(np.abs(fitted / injected - 1) < 0.15), fitted / injected
+
+
+def test_a_warning_about_many_files_names_a_few_and_counts_the_rest():
+    """A folder of 300 DNGs without usable noise tags: the warning names five files and counts
+    the others, instead of 300 names (twice)."""
+    import warnings
+
+    from g2r_jax.sensor.noise import fallback
+
+    names = [f"IMG_{i:04d}.dng" for i in range(300)]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fallback._warn_unusable_profiles({"missing": names}, [(", ".join(names), "too few flat regions")], False)
+    message = str(caught[0].message)
+    assert "IMG_0000.dng, IMG_0001.dng" in message and "IMG_0005.dng" not in message
+    assert message.count("and 295 more (300 files)") == 2 and len(message) < 400, message
+    with warnings.catch_warnings(record=True) as few:
+        warnings.simplefilter("always")
+        fallback._warn_unusable_profiles({"missing": names[:2]}, [], True)
+    assert "missing: IMG_0000.dng, IMG_0001.dng)" in str(few[0].message)

@@ -247,15 +247,27 @@ def _floored_degenerate_rows(unmeasured, cfa_pattern) -> dict:
     return floored_rows
 
 
+NAMES_SHOWN = 5   # file names a warning lists before it counts the rest
+
+
+def _named(names) -> str:
+    """'a.dng, b.dng, ...' for a few names; the first `NAMES_SHOWN` and a count for many (a folder
+    of 300 DNGs must not make a warning of 300 names)."""
+    names = [n for part in names for n in str(part).split(", ")]
+    if len(names) <= NAMES_SHOWN:
+        return ", ".join(names)
+    return f"{', '.join(names[:NAMES_SHOWN])} and {len(names) - NAMES_SHOWN} more ({len(names)} files)"
+
+
 def _warn_unusable_profiles(kinds, problems, any_rows: bool) -> None:
     bad = {k: v for k, v in kinds.items() if k != "ok"}
     if not bad:
         return
-    listing = "; ".join(f"{kind}: {', '.join(names)}" for kind, names in sorted(bad.items()))
+    listing = "; ".join(f"{kind}: {_named(names)}" for kind, names in sorted(bad.items()))
     by_reason = {}
     for name, reason in problems:
         by_reason.setdefault(reason, []).append(name)
-    why = "; ".join(f"{', '.join(names)}: {reason}" for reason, names in by_reason.items())
+    why = "; ".join(f"{_named(names)}: {reason}" for reason, names in by_reason.items())
     outcome = "noise measured from their pixels" if not problems else f"could not measure all of them ({why})"
     if not any_rows:
         outcome = f"no noise could be measured ({why}); the profile simulates NO NOISE"
