@@ -9,7 +9,11 @@ process after a warm-up run (so compilation is not counted), with each run's pro
 
 `--second-run` (issue 52): the check with the store of finished trainings (`downstream.base.cache`, an
 empty folder), run twice on the same inputs: the first run fills it, the second reuses it; both
-wall times and product rows printed side by side.
+wall times and product rows printed side by side. `--tasks isp` (with `--second-run`): the neural
+ISP's part of the check (`g2r-downstream --tasks isp`) instead of the colour check, its product
+row's ΔE2000 printed.
+
+    python benchmarks/check_speed.py --second-run --tasks isp [--camera Canon600D]
 """
 
 from __future__ import annotations
@@ -35,6 +39,8 @@ def main(argv=None) -> int:
     parser.add_argument("--camera", default="Canon600D")
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--second-run", action="store_true", help="first and second run with the cache")
+    parser.add_argument("--tasks", default="colour", choices=("colour", "isp"),
+                        help="with --second-run: the task timed (default colour)")
     args = parser.parse_args(argv)
     compile_cache.enable()
     cg = ROOT.parent / "shared" / "data" / "cg" / "carla"
@@ -49,7 +55,7 @@ def main(argv=None) -> int:
             return time.perf_counter() - start, summary["mean"], summary["seed_means"]
 
         if args.second_run:
-            return _second_run(Path(work) / "dngs", cg, Path(work) / "cache")
+            return _second_run(Path(work) / "dngs", cg, Path(work) / "cache", args.tasks)
         check(None)   # warm-up: compilation, caches on disk
         for _ in range(args.repeats):
             for workers in (1, None):
@@ -59,18 +65,23 @@ def main(argv=None) -> int:
     return 0
 
 
-def _second_run(dngs: Path, cg: Path, store: Path) -> int:
-    """The check twice with one store: wall time and product row of each run."""
+def _second_run(dngs: Path, cg: Path, store: Path, task: str = "colour") -> int:
+    """The check (its colour or ISP task) twice with one store: wall time and product row of each run."""
     from g2r_jax.downstream import default_rows, run_check
     from g2r_jax.downstream.base.cache import DownstreamCache
 
     for label in ("first run (empty store)", "second run (same inputs)"):
         cache = DownstreamCache(store)
         start = time.perf_counter()
-        report = run_check([dngs], [cg], rows=default_rows(False, content_rows=True), cache=cache)
-        seconds = time.perf_counter() - start
-        summary = report.result.summary("fitted", "cnn")
-        print(f"{label}: {seconds:.1f} s; {cache.summary()}; product row (cnn) {summary['mean']:.2f} deg")
+        if task == "isp":
+            report = run_check([dngs], [cg], tasks=("isp",), cache=cache)
+            seconds = time.perf_counter() - start
+            product = f"ΔE2000 {report.isp.summary('fitted', 'delta_e')['mean']:.2f}"
+        else:
+            report = run_check([dngs], [cg], rows=default_rows(False, content_rows=True), cache=cache)
+            seconds = time.perf_counter() - start
+            product = f"{report.result.summary('fitted', 'cnn')['mean']:.2f} deg"
+        print(f"{label}: {seconds:.1f} s; {cache.summary()}; product row ({task}) {product}")
     return 0
 
 
