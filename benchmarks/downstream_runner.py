@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Optional
 
 __all__ = ["CameraBenchmark", "add_arguments", "merge_results", "merge_runs", "merged_order", "read_cameras",
-           "read_runs", "run_cameras", "write_outputs"]
+           "read_runs", "mixed_sources", "run_cameras", "write_outputs"]
 
 
 def say(message: str) -> None:
@@ -153,14 +153,48 @@ def read_cameras(path) -> dict:
     return dict(read_document(path, "every camera runs").get("cameras", {}))
 
 
-def read_runs(paths: Iterable, nesting: int = 1, is_done: Callable[[dict], bool] = lambda entry: True) -> tuple:
+def read_runs(paths: Iterable, nesting: int = 1, is_done: Callable[[dict], bool] = lambda entry: True,
+              say: Callable[[str], None] = lambda line: print(line, file=sys.stderr)) -> tuple:
     """The entries of several runs' JSON files merged (`merge_runs`; entries not `is_done` left out)
-    and the sum of their seconds. **Returns:** (entries, seconds)."""
+    and the sum of their seconds; `say` gets a line for each row whose cameras come from different
+    files (`mixed_sources`). **Returns:** (entries, seconds)."""
+    paths = list(paths)
     documents = [read_document(path) for path in paths]
     seconds = sum(float(document.get("seconds", 0.0)) for document in documents)
     runs = [{key: entry for key, entry in document.get("cameras", {}).items() if is_done(entry)}
             for document in documents]
+    for line in mixed_sources(runs, [str(p) for p in paths], nesting):
+        say(line)
     return merge_runs(runs, nesting), seconds
+
+
+def _row_sources(runs, names, nesting: int) -> dict:
+    """{(part, row): {camera key: the last file holding it}} (part: the inner key with `nesting` 2,
+    e.g. the ISP's "10", else "")."""
+    sources = {}
+    for run, name in zip(runs, names):
+        for key, entry in run.items():
+            parts = entry.items() if nesting > 1 and isinstance(entry, dict) else [("", entry)]
+            for part, result in parts:
+                for row in (result.get("rows", []) if isinstance(result, dict) else []):
+                    sources.setdefault((part, str(row)), {})[key] = name
+    return sources
+
+
+def mixed_sources(runs, names, nesting: int = 1) -> list:
+    """Lines naming each row (and part) whose cameras come from different files: a later file that
+    holds a row for some cameras wins for those, and the others keep an earlier file's (perhaps of
+    other code), which a merged table would not show."""
+    lines = []
+    for (part, row), by_camera in _row_sources(runs, names, nesting).items():
+        files = {name: [] for name in names}
+        for key, name in by_camera.items():
+            files[name].append(key)
+        files = {name: keys for name, keys in files.items() if keys}
+        if len(files) > 1:
+            where = "; ".join(f"{', '.join(sorted(keys))} from {name}" for name, keys in files.items())
+            lines.append(f"note: row {row}{f' ({part})' if part else ''} merges files: {where}")
+    return lines
 
 
 def merge_runs(runs: Iterable[dict], nesting: int = 1) -> dict:

@@ -178,3 +178,22 @@ def test_isp_summary_of_runs_of_different_rows_is_one_table_of_every_row(tmp_pat
     assert "| X | 20.00 / 20.000 / 20.00 | 40.00 / 40.000 / 40.00 | 41.00 / 41.000 / 41.00 |" in out
     assert "| Y | 30.00 / 30.000 / 30.00 | 31.00 / 31.000 / 31.00 |  |" in out
     assert "Total 2.0 min" in out
+
+
+def test_a_row_whose_cameras_come_from_different_files_is_named(tmp_path):
+    """A later run that holds a row for some cameras only (stopped early): the merged table mixes
+    it with an earlier run's row for the others, and a line says which came from where."""
+    old, new = tmp_path / "old.json", tmp_path / "new.json"
+    result = lambda rows: {"rows": rows, "summary": {}}
+    old.write_text(json.dumps({"cameras": {c: {"all": result(["upi", "fitted"]), "10": result(["fitted"])}
+                                           for c in ("A", "B", "C")}}))
+    new.write_text(json.dumps({"cameras": {c: {"10": result(["fitted"])} for c in ("A", "B")}}))
+    lines = []
+    entries, _ = runner.read_runs([old, new], nesting=2, say=lines.append)
+    assert lines == [f"note: row fitted (10) merges files: C from {old}; A, B from {new}"]
+    assert set(entries) == {"A", "B", "C"}
+    complete = tmp_path / "complete.json"
+    complete.write_text(json.dumps({"cameras": {c: {"10": result(["fitted"])} for c in ("A", "B", "C")}}))
+    quiet = []
+    runner.read_runs([old, complete], nesting=2, say=quiet.append)
+    assert quiet == []
