@@ -265,3 +265,32 @@ def test_the_augmented_row_reuses_its_synthetic_rows_set_and_estimator(monkeypat
     for row, result in zip(("fitted", "real_plus_fitted"), apart):
         np.testing.assert_array_equal(together.errors[(row, "histogram")][0], result.errors[(row, "histogram")][0])
     assert together.recipes == {**apart[1].recipes}
+
+
+def test_the_histogram_reads_decoded_pixels_to_the_same_bit(worlds):
+    """`ChromaPixels`: the histogram's features, training and predictions from a set's pixels
+    decoded once equal those from its images, bit for bit, sliced and concatenated alike."""
+    (x, y), (sx, sy), (test_x, _), _ = worlds
+    pixels, synthetic = est.chroma_pixels(x), est.chroma_pixels(sx)
+    grid = est.HistogramGrid(centre=(0.3, -0.2))
+    np.testing.assert_array_equal(est.histogram_features(x, grid), est.histogram_features(pixels, grid))
+    both = np.concatenate([x[2:9], sx])
+    joined = est.ChromaPixels.concatenate([pixels[2:9], synthetic])
+    weights = np.r_[np.ones(7), np.full(len(sx), 0.1)]
+    lights = np.concatenate([y[2:9], sy])
+    from_images = est.train_histogram(both, lights, weights=weights)
+    from_pixels = est.train_histogram(joined, lights, weights=weights)
+    np.testing.assert_array_equal(from_images(test_x), from_pixels(test_x))
+    np.testing.assert_array_equal(from_images(test_x), from_images(est.chroma_pixels(test_x)))
+    with pytest.raises(ValueError, match="negative"):
+        est.chroma_pixels(-x)
+
+
+def test_the_histogram_recipe_choice_is_that_of_its_images(worlds, monkeypatch):
+    """The cross-validation on decoded pixels scores every recipe exactly as on the images."""
+    real, synthetic, _, _ = worlds
+    data = aug.AugmentedSet(real, synthetic)
+    recipe, scores = aug.choose("histogram", data, seed=3)
+    monkeypatch.setattr(est, "chroma_pixels", lambda images: np.asarray(images, np.float32))
+    again, plain = aug.choose("histogram", data, seed=3)
+    assert recipe == again and scores == plain

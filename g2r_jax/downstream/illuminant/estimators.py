@@ -160,21 +160,56 @@ def log_chroma(rgb: np.ndarray) -> np.ndarray:
     return np.stack([np.log(rgb[..., 1] / rgb[..., 0]), np.log(rgb[..., 1] / rgb[..., 2])], -1)
 
 
-def histogram_features(images, grid: HistogramGrid) -> np.ndarray:
-    """(N, H, W, 3) -> (N, bins * bins): each image's log-chroma histogram, pixels weighted by their
-    brightness (r + g + b), normalised to sum 1, square-rooted (so a few large uniform regions do not
-    dominate). Pixels with a channel at or below `_DARK` or off the grid are left out."""
+@dataclasses.dataclass(frozen=True)
+class ChromaPixels:
+    """Images as the histogram estimator reads them, whatever its grid: per pixel the log
+    chromaticities u = log(g / r), v = log(g / b) (float32), the brightness r + g + b, and
+    whether every channel is above `_DARK`; each (N, H * W). Indexing and `concatenate` work as on
+    the images, so a set's pixels are decoded once for many trainings (the recipe's
+    cross-validation of `downstream.illuminant.augmentation`); features from them equal the images'
+    to the bit."""
+    u: np.ndarray
+    v: np.ndarray
+    brightness: np.ndarray
+    valid: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.u)
+
+    def __getitem__(self, index) -> "ChromaPixels":
+        return ChromaPixels(self.u[index], self.v[index], self.brightness[index], self.valid[index])
+
+    @staticmethod
+    def concatenate(parts) -> "ChromaPixels":
+        return ChromaPixels(*(np.concatenate([getattr(p, f) for p in parts]) for f in ("u", "v", "brightness", "valid")))
+
+
+def chroma_pixels(images) -> ChromaPixels:
+    """(N, H, W, 3) camera RGB (checked as the estimators check them) -> their `ChromaPixels`."""
+    return _chroma_pixels(_check_images(images, "histogram"))
+
+
+def _chroma_pixels(images) -> ChromaPixels:
     x = np.ascontiguousarray(np.asarray(images, np.float32).transpose(0, 3, 1, 2)).reshape(len(images), 3, -1)
-    n = len(x)
     valid = (x > _DARK).all(1)                                           # (N, H * W)
     logs = np.log(np.where(valid[:, None], x, 1.0))
+    return ChromaPixels(logs[:, 1] - logs[:, 0], logs[:, 1] - logs[:, 2], x.sum(1), valid)
+
+
+def histogram_features(images, grid: HistogramGrid) -> np.ndarray:
+    """(N, H, W, 3) images or their `ChromaPixels` -> (N, bins * bins): each image's log-chroma
+    histogram, pixels weighted by their brightness (r + g + b), normalised to sum 1, square-rooted
+    (so a few large uniform regions do not dominate). Pixels with a channel at or below `_DARK` or
+    off the grid are left out."""
+    pixels = images if isinstance(images, ChromaPixels) else _chroma_pixels(images)
+    n = len(pixels)
     low = np.asarray(grid.centre, np.float32) - grid.half_width
     cell = 2 * grid.half_width / grid.bins
-    u = np.floor((logs[:, 1] - logs[:, 0] - low[0]) / cell).astype(np.int32)
-    v = np.floor((logs[:, 1] - logs[:, 2] - low[1]) / cell).astype(np.int32)
-    inside = valid & (u >= 0) & (u < grid.bins) & (v >= 0) & (v < grid.bins)
+    u = np.floor((pixels.u - low[0]) / cell).astype(np.int32)
+    v = np.floor((pixels.v - low[1]) / cell).astype(np.int32)
+    inside = pixels.valid & (u >= 0) & (u < grid.bins) & (v >= 0) & (v < grid.bins)
     flat = np.where(inside, u * grid.bins + v, 0) + (np.arange(n) * grid.bins ** 2)[:, None]
-    weight = np.where(inside, x.sum(1), 0.0)
+    weight = np.where(inside, pixels.brightness, 0.0)
     counts = np.bincount(flat.ravel(), weights=weight.ravel(), minlength=n * grid.bins ** 2).reshape(n, -1)
     counts /= np.maximum(counts.sum(1, keepdims=True), 1e-12)
     return np.sqrt(counts)
@@ -185,11 +220,12 @@ def train_histogram(images, illuminants, *, seed: int = 0, ridge: float = 1e-2,
     """Ridge regression histogram -> illuminant log-chroma (linear, in the spirit of Barron 2015).
 
     The grid is centred on the training lights' mean log-chroma (pixels are surface chroma plus
-    light chroma, Barron Eq. 3, so the lights fix where the mass lies); `ridge` times the number of
+    light chroma, Barron Eq. 3, so the lights fix where the mass lies); `images` (N, H, W, 3) or
+    their `ChromaPixels` (its predictor takes either too); `ridge` times the number of
     images is the Tikhonov weight on centred features; `weights` (N,) each image's weight in the
     means and the least squares (equal without). `seed` is unused (closed form).
     """
-    x = _check_images(images, "histogram")
+    x = images if isinstance(images, ChromaPixels) else _check_images(images, "histogram")
     lights = _check_lights(illuminants, len(x), "histogram")
     w = _sample_weights(weights, len(x), "histogram")[:, None]
     target = log_chroma(lights)
@@ -202,7 +238,7 @@ def train_histogram(images, illuminants, *, seed: int = 0, ridge: float = 1e-2,
     weights = np.linalg.solve(gram, centred.T @ (w * (target - mean_target)))
 
     def predict(test_images) -> np.ndarray:
-        t = _check_images(test_images, "histogram predictor")
+        t = test_images if isinstance(test_images, ChromaPixels) else _check_images(test_images, "histogram predictor")
         uv = (histogram_features(t, grid) - mean_feature) @ weights + mean_target
         return _unit_rows(np.stack([np.exp(-uv[:, 0]), np.ones(len(uv)), np.exp(-uv[:, 1])], 1))
 
