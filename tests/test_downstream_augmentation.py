@@ -237,7 +237,7 @@ def _train_small(small, *args, config=None, **kwargs):
 _ORIGINAL_TRAIN_CNN = est.train_cnn
 
 
-def test_the_augmented_row_reuses_its_synthetic_rows_set_and_estimator(monkeypatch):
+def test_the_augmented_row_reuses_its_synthetic_rows_set_and_estimator(monkeypatch, tmp_path):
     """With 'fitted' and 'real_plus_fitted' in one experiment, each fold builds the g2r_jax set once
     and trains the estimator on it once (the augmented row's 'synthetic' candidate is that
     estimator), and the errors are those of the rows run apart."""
@@ -250,7 +250,7 @@ def test_the_augmented_row_reuses_its_synthetic_rows_set_and_estimator(monkeypat
     original = est.train_estimator
 
     def counting(kind, images, lights, *, seed=0, weights=None):
-        trained.append((kind, np.asarray(images).shape[0], weights is None))
+        trained.append((kind, len(images), weights is None))
         return original(kind, images, lights, seed=seed, weights=weights)
 
     monkeypatch.setattr(est, "train_estimator", counting)
@@ -265,6 +265,20 @@ def test_the_augmented_row_reuses_its_synthetic_rows_set_and_estimator(monkeypat
     for row, result in zip(("fitted", "real_plus_fitted"), apart):
         np.testing.assert_array_equal(together.errors[(row, "histogram")][0], result.errors[(row, "histogram")][0])
     assert together.recipes == {**apart[1].recipes}
+    scores = together.choice_scores[("real_plus_fitted", "histogram")]
+    assert len(scores) == 3 and all(set(s) == {str(r) for r in aug.candidates("histogram")} for s in scores)
+    assert together.to_dict()["choice_scores"]["real_plus_fitted/histogram"] == scores
+
+    from g2r_jax.downstream.base.cache import DownstreamCache
+
+    store = DownstreamCache(tmp_path / "store")
+    first = experiment.illuminant_experiment(real, profile, _cg(), rows=("fitted", "real_plus_fitted"),
+                                             estimators=("histogram",), seeds=(0,), n=50, folds=3,
+                                             illuminant_model="prior", cache=store)
+    stored = experiment.illuminant_experiment(real, profile, _cg(), rows=("fitted", "real_plus_fitted"),
+                                              estimators=("histogram",), seeds=(0,), n=50, folds=3,
+                                              illuminant_model="prior", cache=DownstreamCache(tmp_path / "store"))
+    assert stored.choice_scores == first.choice_scores == together.choice_scores
 
 
 def test_the_histogram_reads_decoded_pixels_to_the_same_bit(worlds):
@@ -284,6 +298,8 @@ def test_the_histogram_reads_decoded_pixels_to_the_same_bit(worlds):
     np.testing.assert_array_equal(from_images(test_x), from_images(est.chroma_pixels(test_x)))
     with pytest.raises(ValueError, match="negative"):
         est.chroma_pixels(-x)
+    with pytest.raises(TypeError, match="not an image array"):
+        np.asarray(pixels)
 
 
 def test_the_histogram_recipe_choice_is_that_of_its_images(worlds, monkeypatch):

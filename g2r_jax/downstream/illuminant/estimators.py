@@ -176,6 +176,9 @@ class ChromaPixels:
     def __len__(self) -> int:
         return len(self.u)
 
+    def __array__(self, dtype=None, copy=None):
+        raise TypeError("ChromaPixels are an image set's decoded pixels, not an image array")
+
     def __getitem__(self, index) -> "ChromaPixels":
         return ChromaPixels(self.u[index], self.v[index], self.brightness[index], self.valid[index])
 

@@ -39,6 +39,7 @@ real_profile_light - real; the content model's gain is fitted_no_content - fitte
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -96,6 +97,8 @@ class ExperimentResult:
     seconds: float = 0.0
     notes: list = dataclasses.field(default_factory=list)
     recipes: dict = dataclasses.field(default_factory=dict)   # (augmented row, estimator) -> recipe per fold
+    # (augmented row, estimator) -> per fold, {recipe: its cross-validated mean error on the training files}
+    choice_scores: dict = dataclasses.field(default_factory=dict)
     labelled: Optional[int] = None
     files: int = 0                 # real images in the experiment (folds included)
 
@@ -110,6 +113,7 @@ class ExperimentResult:
         return {"camera": self.camera, "rows": list(self.rows), "estimators": list(self.estimators),
                 "seeds": list(self.seeds), "seconds": self.seconds, "notes": self.notes,
                 "labelled": self.labelled, "files": self.files, "recipes": {f"{r}/{e}": v for (r, e), v in self.recipes.items()},
+                "choice_scores": {f"{r}/{e}": v for (r, e), v in self.choice_scores.items()},
                 "summary": {f"{r}/{e}": self.summary(r, e) for r in self.rows for e in self.estimators}}
 
 
@@ -301,6 +305,7 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
                  single_light=single_light, lights=lights, labelled=labelled)
     errors = {(r, e): [] for r in rows for e in estimators}
     recipes = {(r, e): [] for r in rows if r in AUGMENTED_ROWS for e in estimators}
+    choice_scores = {key: [] for key in recipes}
     fold_sets = folds_of(len(real.images), folds, 0, groups=real.groups)
     workers = max(1, min(len(rows), workers or min(MAX_WORKERS, os.cpu_count() or 1)))
     unit_key = _unit_keys(real, profile, linear, n=n, folds=folds, illuminant_model=illuminant_model,
@@ -322,13 +327,17 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
                         estimates = stored[estimator]["estimates"]
                         if (row, estimator) in recipes:
                             recipes[(row, estimator)].append(str(stored[estimator]["recipe"]))
+                            choice_scores[(row, estimator)].append(json.loads(str(stored[estimator].get("scores", "{}"))))
                     else:
                         predict = _trained(estimator, built, 1000 * seed + fold, recipes.get((row, estimator)),
-                                           sets.fold_work, row, AUGMENTED_ROWS.get(row) in rows)
+                                           sets.fold_work, row, AUGMENTED_ROWS.get(row) in rows,
+                                           choice_scores.get((row, estimator)))
                         estimates = predict(real.images[test])
                         if cache is not None:
                             chosen = recipes[(row, estimator)][-1] if (row, estimator) in recipes else ""
-                            cache.put(keys[estimator], {"estimates": estimates, "recipe": np.asarray(chosen)})
+                            scores = choice_scores[(row, estimator)][-1] if (row, estimator) in recipes else {}
+                            cache.put(keys[estimator], {"estimates": estimates, "recipe": np.asarray(chosen),
+                                                        "scores": np.asarray(json.dumps(scores))})
                     out[estimator] = angular_error_degrees(estimates, real.illuminants[test])
                     advance(progress, 1, f"colour check: seed {seed}, fold {fold + 1}, {row}, {estimator}")
                 return out
@@ -342,7 +351,7 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
             errors[key].append(np.concatenate(parts))
     return ExperimentResult(camera=real.name, rows=tuple(rows), estimators=tuple(estimators), seeds=tuple(seeds),
                             errors=errors, seconds=time.perf_counter() - start, notes=list(sets.notes),
-                            recipes=recipes, labelled=labelled, files=len(real.images))
+                            recipes=recipes, choice_scores=choice_scores, labelled=labelled, files=len(real.images))
 
 
 def _unit_keys(real: RealSet, profile, cg_linear, **options):
@@ -358,9 +367,10 @@ def _unit_keys(real: RealSet, profile, cg_linear, **options):
 
 
 def _trained(estimator: str, built, seed: int, recipes: Optional[list], fold_work: Once, row: str,
-             shares: bool = False):
+             shares: bool = False, scores: Optional[list] = None):
     """A predictor trained on a row's set: an (images, lights) pair, or an augmented set (its
-    recipe chosen on the training files and appended to `recipes`). A row's estimator is trained
+    recipe chosen on the training files and appended to `recipes`, the candidates' cross-validated
+    means to `scores`). A row's estimator is trained
     once per fold (`fold_work`); with `shares` (its synthetic row is trained too) the augmented
     row reuses that row's estimator as its 'synthetic' candidate and its pretraining (the same
     set, seed and training: the same network, one training fewer per candidate)."""
@@ -371,6 +381,8 @@ def _trained(estimator: str, built, seed: int, recipes: Optional[list], fold_wor
         return fold_work.get(("trained", row, estimator), lambda: train_estimator(estimator, *built, seed=seed))
     synthetic = fold_work.get(("trained", AUGMENTED_ROWS[row], estimator),
                               lambda: train_estimator(estimator, *built.synthetic, seed=seed)) if shares else None
-    predict, recipe, _ = train_chosen(estimator, built, seed=seed, synthetic=synthetic)
+    predict, recipe, cross_validated = train_chosen(estimator, built, seed=seed, synthetic=synthetic)
     recipes.append(str(recipe))
+    if scores is not None:
+        scores.append({name: round(float(value), 4) for name, value in cross_validated.items()})
     return predict
