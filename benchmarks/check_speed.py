@@ -73,14 +73,11 @@ def _second_run(dngs: Path, cg: Path, store: Path, task: str = "colour") -> int:
     for label in ("first run (empty store)", "second run (same inputs)"):
         cache = DownstreamCache(store)
         start = time.perf_counter()
-        if task == "isp":
-            report = run_check([dngs], [cg], tasks=("isp",), cache=cache)
-            seconds = time.perf_counter() - start
-            product = f"ΔE2000 {report.isp.summary('fitted', 'delta_e')['mean']:.2f}"
-        else:
-            report = run_check([dngs], [cg], rows=default_rows(False, content_rows=True), cache=cache)
-            seconds = time.perf_counter() - start
-            product = f"{report.result.summary('fitted', 'cnn')['mean']:.2f} deg"
+        options = {"tasks": ("isp",)} if task == "isp" else {"rows": default_rows(False, content_rows=True)}
+        report = run_check([dngs], [cg], cache=cache, **options)
+        seconds = time.perf_counter() - start
+        product = (f"ΔE2000 {report.isp.summary('fitted', 'delta_e')['mean']:.2f}" if task == "isp"
+                   else f"{report.result.summary('fitted', 'cnn')['mean']:.2f} deg")
         print(f"{label}: {seconds:.1f} s; {cache.summary()}; product row ({task}) {product}")
     return 0
 

@@ -29,7 +29,3 @@ class Once:
             except BaseException as error:
                 future.set_exception(error)
         return future.result()
-
-    def __contains__(self, key: Hashable) -> bool:
-        with self._lock:
-            return key in self._futures and self._futures[key].done()

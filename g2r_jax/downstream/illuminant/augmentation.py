@@ -116,10 +116,7 @@ def train(estimator: str, data: AugmentedSet, recipe: Recipe, *, seed: int = 0, 
         return estimators.train_cnn(real_images, real_lights, seed=seed, config=tuned, init=first.params)
     if recipe.kind != "mixed":
         raise ValueError(f"unknown recipe {recipe.kind!r}; expected real, synthetic, mixed or pretrained")
-    if isinstance(real_images, estimators.ChromaPixels):
-        images = estimators.ChromaPixels.concatenate([real_images, synthetic_images])
-    else:
-        images = np.concatenate([np.asarray(real_images, np.float32), np.asarray(synthetic_images, np.float32)])
+    images = estimators.joined([real_images, synthetic_images])
     lights = np.concatenate([np.asarray(real_lights, np.float64), np.asarray(synthetic_lights, np.float64)])
     weights = _mixed_weights(len(real_images), len(synthetic_images), recipe.worth)
     if estimator == "cnn":
@@ -159,11 +156,11 @@ def _cross_validated(estimator: str, data: AugmentedSet, recipes: tuple, seed: i
     parts = _cross_validation_parts(real_images, seed, folds(estimator))
     if synthetic is None and _synthetic_needed(recipes):
         synthetic = train(estimator, data, SYNTHETIC, seed=seed)
-    if estimator == "histogram":    # its K x candidates trainings read each image's chroma once
-        from g2r_jax.downstream.illuminant.estimators import chroma_pixels
+    from g2r_jax.downstream.illuminant.estimators import decoded_for
 
-        real_images = chroma_pixels(real_images)
-        data = AugmentedSet(real=(real_images, real_lights), synthetic=(chroma_pixels(data.synthetic[0]), data.synthetic[1]))
+    real_images = decoded_for(estimator, real_images)    # K x candidates trainings: each image decoded once
+    data = AugmentedSet(real=(real_images, real_lights), synthetic=(decoded_for(estimator, data.synthetic[0]),
+                                                                    data.synthetic[1]))
     errors = {recipe: [] for recipe in recipes}
     for held in parts:
         kept = np.setdiff1d(np.arange(len(real_images)), held)

@@ -192,6 +192,20 @@ def chroma_pixels(images) -> ChromaPixels:
     return _chroma_pixels(_check_images(images, "histogram"))
 
 
+def decoded_for(kind: str, images):
+    """`images` in the form estimator `kind` reads fastest when one set trains it many times (the
+    recipe choice's cross-validation): the histogram's `ChromaPixels`, decoded once; the images
+    themselves for the others."""
+    return chroma_pixels(images) if kind == "histogram" else images
+
+
+def joined(parts):
+    """Image sets, or `ChromaPixels`, one after the other (the mixed recipes' training sets)."""
+    if isinstance(parts[0], ChromaPixels):
+        return ChromaPixels.concatenate(parts)
+    return np.concatenate([np.asarray(part, np.float32) for part in parts])
+
+
 def _chroma_pixels(images) -> ChromaPixels:
     x = np.ascontiguousarray(np.asarray(images, np.float32).transpose(0, 3, 1, 2)).reshape(len(images), 3, -1)
     valid = (x > _DARK).all(1)                                           # (N, H * W)

@@ -146,7 +146,7 @@ class _Sets:
         self.cg_linear, self.illuminant_model, self.other = cg_linear, illuminant_model, other
         self.single_light = single_light
         self.cache = {}
-        self.fold_work = Once()   # the current fold's sets and trainings that rows share
+        self.fold_work = Once()   # the current fold's sets and trainings that rows share (new in `prepare`)
         self.notes = []   # lines for the result's notes (e.g. the content model each fold kept)
 
     def views(self, seed):
@@ -214,7 +214,7 @@ class _Sets:
                 return files
             synthetic = AUGMENTED_ROWS[row]
             return AugmentedSet(real=files, synthetic=self.fold_work.get(
-                ("set", synthetic, fold, seed), lambda: self.build(synthetic, train, fold, seed)))
+                ("set", synthetic), lambda: self.build(synthetic, train, fold, seed)))
         if row == "upi":
             key = ("upi", seed)
             if key not in self.cache:
@@ -320,7 +320,7 @@ def illuminant_experiment(real: RealSet, profile, cg_images, *, rows=DEFAULT_ROW
                 keys = {e: unit_key(row, e, test, seed) for e in estimators}
                 stored = {e: cache.get(keys[e]) for e in estimators} if cache is not None else {}
                 built = None if stored and all(v is not None for v in stored.values()) else sets.fold_work.get(
-                    ("set", row, fold, seed), lambda: sets.build(row, train, fold, seed))
+                    ("set", row), lambda: sets.build(row, train, fold, seed))
                 out = {}
                 for estimator in estimators:
                     if stored.get(estimator) is not None:
